@@ -1,0 +1,1 @@
+"""Audio: array geometry, localizers, speech activity, talker tracking, sources and room simulation."""

@@ -1,0 +1,180 @@
+"""Microphone array geometry: load and validate the JSON layout, list pairs, rotate head frames.
+
+Array frame: x forward, y left, z up (metres). A direction is given by its azimuth (from +x toward
++y) and elevation (up from the horizontal plane); its unit vector is
+``u = [cos(el) cos(az), cos(el) sin(az), sin(el)]``. A plane wave from ``u`` reaches microphone
+``k`` at time ``-u·p_k / c`` relative to the array origin, so the delay of mic ``j`` behind mic
+``i`` is ``tau_ij = u·(p_i - p_j) / c``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.errors import ConfigError
+from tracker.units import SPEED_OF_SOUND_M_PER_S
+
+FloatArray = NDArray[np.float64]
+
+# Extents below this are treated as "flat" along that axis (an array cannot resolve it).
+_FLAT_TOLERANCE_M = 1e-3
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class MicArray:
+    """A microphone array in its own frame.
+
+    Attributes
+    ----------
+    positions_m : ndarray, shape (n_mics, 3)
+        Microphone positions in metres (x forward, y left, z up).
+    name : str
+        Where the layout came from (file name or a label), used in error messages.
+    """
+
+    positions_m: FloatArray
+    name: str = "array"
+    pairs: tuple[tuple[int, int], ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        positions = np.asarray(self.positions_m, dtype=float)
+        if positions.ndim != 2 or positions.shape[1] != 3:
+            raise ConfigError(
+                f"{self.name}: mics must be a list of [x, y, z] in metres, got shape {positions.shape}"
+            )
+        if positions.shape[0] < 2:
+            raise ConfigError(f"{self.name}: need at least 2 microphones, got {positions.shape[0]}")
+        if not np.all(np.isfinite(positions)):
+            raise ConfigError(f"{self.name}: mic positions must be finite numbers")
+        if np.any(np.abs(positions) > 5.0):
+            raise ConfigError(f"{self.name}: a mic lies more than 5 m from the origin; use metres")
+        n = positions.shape[0]
+        separations = np.linalg.norm(positions[:, None, :] - positions[None, :, :], axis=-1)
+        separations[np.arange(n), np.arange(n)] = np.inf
+        if np.min(separations) < 1e-3:
+            i, j = np.unravel_index(np.argmin(separations), separations.shape)
+            raise ConfigError(f"{self.name}: mics {i} and {j} are closer than 1 mm")
+        positions.setflags(write=False)
+        object.__setattr__(self, "positions_m", positions)
+        object.__setattr__(
+            self, "pairs", tuple((i, j) for i in range(n) for j in range(i + 1, n))
+        )
+
+    @property
+    def n_mics(self) -> int:
+        """Number of microphones."""
+        return int(self.positions_m.shape[0])
+
+    @property
+    def baselines_m(self) -> FloatArray:
+        """Pair baselines ``p_i - p_j``; shape (n_pairs, 3)."""
+        i, j = np.array(self.pairs).T
+        return self.positions_m[i] - self.positions_m[j]
+
+    @property
+    def max_lag_s(self) -> FloatArray:
+        """Physical lag limit ``|p_i - p_j| / c`` of each pair; shape (n_pairs,)."""
+        return np.linalg.norm(self.baselines_m, axis=1) / SPEED_OF_SOUND_M_PER_S
+
+    @property
+    def extent_m(self) -> FloatArray:
+        """Span of the array along x, y and z; shape (3,)."""
+        return np.ptp(self.positions_m, axis=0)
+
+    @property
+    def resolves_elevation(self) -> bool:
+        """True when the mics span the z axis, so elevation is observable."""
+        return bool(self.extent_m[2] > _FLAT_TOLERANCE_M)
+
+    @property
+    def resolves_front_back(self) -> bool:
+        """True when the mics span the x axis, so front and back azimuths differ."""
+        return bool(self.extent_m[0] > _FLAT_TOLERANCE_M)
+
+    def delays_s(self, directions: FloatArray) -> FloatArray:
+        """Plane-wave pair delays ``tau_ij = u·(p_i - p_j) / c``.
+
+        Parameters
+        ----------
+        directions : ndarray, shape (..., 3)
+            Unit vectors toward the source.
+
+        Returns
+        -------
+        ndarray, shape (..., n_pairs)
+        """
+        return np.asarray(directions) @ self.baselines_m.T / SPEED_OF_SOUND_M_PER_S
+
+
+def unit_vector(azimuth_rad: FloatArray | float, elevation_rad: FloatArray | float) -> FloatArray:
+    """Unit direction vectors; shape ``broadcast(az, el).shape + (3,)``."""
+    az = np.asarray(azimuth_rad, dtype=float)
+    el = np.asarray(elevation_rad, dtype=float)
+    cos_el = np.cos(el)
+    return np.stack(np.broadcast_arrays(cos_el * np.cos(az), cos_el * np.sin(az), np.sin(el)), -1)
+
+
+def array_from_dict(data: object, name: str = "array") -> MicArray:
+    """Build a :class:`MicArray` from ``{"mics": [[x, y, z], ...]}`` (metres)."""
+    if not isinstance(data, dict) or "mics" not in data:
+        raise ConfigError(f'{name}: expected a JSON object {{"mics": [[x, y, z], ...]}}')
+    mics = data["mics"]
+    if not isinstance(mics, list) or not all(
+        isinstance(m, list) and len(m) == 3 and all(isinstance(v, int | float) for v in m)
+        for m in mics
+    ):
+        raise ConfigError(f"{name}: 'mics' must be a list of [x, y, z] number triples in metres")
+    return MicArray(np.array(mics, dtype=float), name=name)
+
+
+def load_array(path: str | Path) -> MicArray:
+    """Read and validate an array geometry JSON file."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise ConfigError(f"{path}: array file not found") from exc
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"{path}: not a readable JSON array file ({exc})") from exc
+    return array_from_dict(data, name=str(path))
+
+
+def rotation_world_head(pan_rad: float, tilt_rad: float) -> FloatArray:
+    """``R_world_head`` for a head panned by ``pan_rad`` (about +z) then tilted up by ``tilt_rad``.
+
+    Maps vectors in the head frame (x along the camera axis) into the base/world frame;
+    shape (3, 3). Tilting up lifts +x toward +z, a rotation of ``-tilt`` about +y.
+    """
+    cp, sp = np.cos(pan_rad), np.sin(pan_rad)
+    ct, st = np.cos(tilt_rad), np.sin(tilt_rad)
+    r_pan = np.array([[cp, -sp, 0.0], [sp, cp, 0.0], [0.0, 0.0, 1.0]])
+    r_tilt = np.array([[ct, 0.0, -st], [0.0, 1.0, 0.0], [st, 0.0, ct]])
+    return r_pan @ r_tilt
+
+
+@dataclass(frozen=True, slots=True)
+class Direction:
+    """A direction as azimuth and elevation in radians."""
+
+    azimuth_rad: float
+    elevation_rad: float
+
+
+def head_to_world(
+    azimuth_rad: float, elevation_rad: float, pan_rad: float, tilt_rad: float
+) -> Direction:
+    """Turn a direction measured by a head-mounted array into the base frame.
+
+    The seed added the encoder angle to the measured angle (chapter 5); this is the exact
+    version of that, which matters once tilt is not small.
+    """
+    u_world = rotation_world_head(pan_rad, tilt_rad) @ unit_vector(azimuth_rad, elevation_rad)
+    return Direction(
+        azimuth_rad=float(np.arctan2(u_world[1], u_world[0])),
+        elevation_rad=float(np.arcsin(np.clip(u_world[2], -1.0, 1.0))),
+    )

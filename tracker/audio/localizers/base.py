@@ -1,0 +1,96 @@
+"""The localizer interface: one window of multichannel audio in, one direction estimate out."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.audio.array import MicArray, unit_vector
+from tracker.errors import DataError
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class DirectionEstimate:
+    """One direction estimate in the array frame.
+
+    Attributes
+    ----------
+    azimuth_rad : float
+        From +x toward +y, in (-pi, pi].
+    elevation_rad : float or None
+        Up from horizontal; None when the array cannot observe it (all mics in one z plane).
+    confidence : float
+        In [0, 1]; the method's own peak strength (normalised SRP/GCC peak, or 0 when it found
+        nothing).
+    """
+
+    azimuth_rad: float
+    elevation_rad: float | None
+    confidence: float
+
+
+class Localizer(Protocol):
+    """A direction-of-arrival method bound to one array and sample rate."""
+
+    name: str
+    array: MicArray
+    fs_hz: int
+
+    def locate(self, frame: FloatArray) -> DirectionEstimate:
+        """Estimate the dominant source direction in ``frame``, shape (n_mics, n_samples)."""
+        ...
+
+
+def check_frame(frame: FloatArray, array: MicArray, min_samples: int) -> FloatArray:
+    """Validate a window of audio; returns it as float64, shape (n_mics, n_samples)."""
+    frame = np.asarray(frame, dtype=float)
+    if frame.ndim != 2 or frame.shape[0] != array.n_mics:
+        raise DataError(
+            f"audio window has shape {frame.shape}, expected ({array.n_mics}, n_samples) "
+            f"for {array.name}"
+        )
+    if frame.shape[1] < min_samples:
+        raise DataError(f"audio window has {frame.shape[1]} samples, need at least {min_samples}")
+    if not np.all(np.isfinite(frame)):
+        raise DataError("audio window contains NaN or infinite samples")
+    return frame
+
+
+def direction_grid(
+    array: MicArray, azimuth_step_rad: float, elevation_step_rad: float
+) -> tuple[FloatArray, FloatArray]:
+    """Candidate directions the array can tell apart.
+
+    Azimuth spans the full circle when the array has depth along x, otherwise the front half
+    (-90°..90°); elevation spans -80°..80° when the array has height, otherwise 0 only.
+
+    Returns
+    -------
+    azimuth_rad, elevation_rad : ndarray, shape (n_grid,) each
+    """
+    if array.resolves_front_back:
+        az = np.arange(-np.pi, np.pi, azimuth_step_rad)
+    else:
+        az = np.linspace(-np.pi / 2, np.pi / 2, int(round(np.pi / azimuth_step_rad)) + 1)
+    if array.resolves_elevation:
+        limit = np.deg2rad(80.0)
+        el = np.linspace(-limit, limit, int(round(2 * limit / elevation_step_rad)) + 1)
+    else:
+        el = np.zeros(1)
+    az_grid, el_grid = np.meshgrid(az, el, indexing="ij")
+    return az_grid.ravel(), el_grid.ravel()
+
+
+def grid_vectors(azimuth_rad: FloatArray, elevation_rad: FloatArray) -> FloatArray:
+    """Unit vectors for a grid; shape (n_grid, 3)."""
+    return unit_vector(azimuth_rad, elevation_rad)
+
+
+def wrap_angle(angle_rad: FloatArray | float) -> FloatArray:
+    """Wrap into (-pi, pi]."""
+    return np.asarray(-((-np.asarray(angle_rad) + np.pi) % (2 * np.pi) - np.pi))

@@ -1,0 +1,186 @@
+"""Shared spectral pieces: STFT, PHAT cross-spectra, upsampled GCC and the SRP grid search."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.audio.array import MicArray, unit_vector
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+_EPS = 1e-12
+
+
+@dataclass(frozen=True, slots=True)
+class SpectralSettings:
+    """STFT and band settings shared by the PHAT localizers.
+
+    Attributes
+    ----------
+    nfft : int
+        FFT length in samples (512 = 32 ms at 16 kHz).
+    band_hz : tuple of float
+        Frequencies kept for localization; speech energy is in 200 Hz - 5 kHz.
+    upsample : int
+        GCC interpolation factor: lag resolution is ``1 / (fs * upsample)``.
+    """
+
+    nfft: int = 512
+    band_hz: tuple[float, float] = (200.0, 5000.0)
+    upsample: int = 16
+
+
+def stft(frame: FloatArray, nfft: int) -> ComplexArray:
+    """Hann-windowed STFT with 50 % overlap.
+
+    Parameters
+    ----------
+    frame : ndarray, shape (n_mics, n_samples)
+
+    Returns
+    -------
+    ndarray, shape (n_mics, n_frames, nfft // 2 + 1)
+    """
+    hop = nfft // 2
+    n_frames = 1 + max(0, (frame.shape[1] - nfft) // hop)
+    if frame.shape[1] < nfft:
+        frame = np.pad(frame, ((0, 0), (0, nfft - frame.shape[1])))
+    starts = np.arange(n_frames) * hop
+    index = starts[:, None] + np.arange(nfft)[None, :]
+    window = np.hanning(nfft + 1)[:nfft]
+    return np.fft.rfft(frame[:, index] * window, axis=-1)
+
+
+def band_mask(fs_hz: int, settings: SpectralSettings) -> NDArray[np.bool_]:
+    """Boolean mask of the rfft bins inside the localization band; shape (nfft // 2 + 1,)."""
+    freqs = np.fft.rfftfreq(settings.nfft, 1.0 / fs_hz)
+    return (freqs >= settings.band_hz[0]) & (freqs <= settings.band_hz[1])
+
+
+def pair_cross_spectra(spectra: ComplexArray, array: MicArray, weights: FloatArray | None = None
+                       ) -> ComplexArray:
+    """Time-summed cross-spectra ``sum_t w(t,f) X_i X_j*`` for every pair.
+
+    Parameters
+    ----------
+    spectra : ndarray, shape (n_mics, n_frames, n_freq)
+    weights : ndarray, shape (n_frames, n_freq), optional
+
+    Returns
+    -------
+    ndarray, shape (n_pairs, n_freq)
+    """
+    i, j = np.array(array.pairs).T
+    cross = spectra[i] * np.conj(spectra[j])
+    if weights is not None:
+        cross = cross * weights[None]
+    return cross.sum(axis=1)
+
+
+def phat(cross: ComplexArray, mask: NDArray[np.bool_]) -> ComplexArray:
+    """PHAT weighting ``C / |C|`` restricted to ``mask``; shape unchanged."""
+    return np.where(mask[None, :], cross / (np.abs(cross) + _EPS), 0.0)
+
+
+def gcc(cross: ComplexArray, settings: SpectralSettings) -> FloatArray:
+    """Upsampled generalized cross-correlation of each pair.
+
+    Lag ``k`` (in units of ``1 / (fs * upsample)``) sits at index ``k mod n_lags``;
+    normalised so a perfect single plane wave gives a peak of 1.
+
+    Returns
+    -------
+    ndarray, shape (n_pairs, nfft * upsample)
+    """
+    n_lags = settings.nfft * settings.upsample
+    n_used = np.count_nonzero(np.abs(cross[0]) > 0) or 1
+    # irfft divides by n_lags and counts each positive bin twice (Hermitian symmetry).
+    return np.fft.irfft(cross, n=n_lags, axis=-1) * (n_lags / (2.0 * n_used))
+
+
+@dataclass(frozen=True, slots=True)
+class GridPeak:
+    """The best direction on a grid and its steered response (mean GCC over pairs)."""
+
+    azimuth_rad: float
+    elevation_rad: float
+    power: float
+
+
+class SrpGrid:
+    """Steered response power over a direction grid, by lookup into upsampled GCCs.
+
+    Parameters
+    ----------
+    array : MicArray
+    fs_hz : int
+    azimuth_rad, elevation_rad : ndarray, shape (n_grid,)
+        The coarse search grid.
+    settings : SpectralSettings
+    """
+
+    def __init__(
+        self,
+        array: MicArray,
+        fs_hz: int,
+        azimuth_rad: FloatArray,
+        elevation_rad: FloatArray,
+        settings: SpectralSettings,
+    ) -> None:
+        self.array = array
+        self.fs_hz = fs_hz
+        self.settings = settings
+        self.azimuth_rad = azimuth_rad
+        self.elevation_rad = elevation_rad
+        self._lag_scale = fs_hz * settings.upsample
+        self._n_lags = settings.nfft * settings.upsample
+        self._coarse_lags = self._lags(azimuth_rad, elevation_rad)
+        self._pair_index = np.arange(len(array.pairs))[None, :]
+
+    def _lags(self, azimuth_rad: FloatArray, elevation_rad: FloatArray) -> FloatArray:
+        """Fractional GCC lag index of every pair for every direction; shape (n_grid, n_pairs).
+
+        The GCC of pair (i, j) peaks at ``t_i - t_j``, minus the delay of j behind i.
+        """
+        return -self.array.delays_s(unit_vector(azimuth_rad, elevation_rad)) * self._lag_scale
+
+    def _response(self, g: FloatArray, lags: FloatArray) -> FloatArray:
+        """Mean over pairs of the linearly interpolated GCC; shape (n_grid,)."""
+        low = np.floor(lags)
+        frac = lags - low
+        i0 = low.astype(np.int64) % self._n_lags
+        i1 = (i0 + 1) % self._n_lags
+        values = (1.0 - frac) * g[self._pair_index, i0] + frac * g[self._pair_index, i1]
+        return np.asarray(values.mean(axis=1))
+
+    def response(self, g: FloatArray) -> FloatArray:
+        """SRP on the coarse grid for GCCs ``g`` of shape (n_pairs, n_lags); shape (n_grid,)."""
+        return self._response(g, self._coarse_lags)
+
+    def peak(self, g: FloatArray, refine_step_rad: float = np.deg2rad(0.25)) -> GridPeak:
+        """Best coarse grid point, refined on a fine local grid around it."""
+        coarse = self.response(g)
+        best = int(np.argmax(coarse))
+        az0, el0 = self.azimuth_rad[best], self.elevation_rad[best]
+        span = _grid_step(self.azimuth_rad)
+        offsets = np.arange(-span, span + refine_step_rad / 2, refine_step_rad)
+        if self.array.resolves_elevation:
+            el_span = _grid_step(self.elevation_rad)
+            el_offsets = np.arange(-el_span, el_span + refine_step_rad, 2 * refine_step_rad)
+            d_az, d_el = np.meshgrid(offsets, el_offsets, indexing="ij")
+            az, el = az0 + d_az.ravel(), np.clip(el0 + d_el.ravel(), -np.pi / 2, np.pi / 2)
+        else:
+            az, el = az0 + offsets, np.full_like(offsets, el0)
+        fine = self._response(g, self._lags(az, el))
+        k = int(np.argmax(fine))
+        return GridPeak(float(az[k]), float(el[k]), float(max(fine[k], coarse[best])))
+
+
+def _grid_step(values: FloatArray) -> float:
+    """Smallest positive spacing in a grid axis (0 when the axis has one value)."""
+    unique = np.unique(np.round(values, 9))
+    return float(np.min(np.diff(unique))) if unique.size > 1 else 0.0

@@ -1,0 +1,64 @@
+"""The ``tracker`` command: builds the argument parser from one module per command group.
+
+Each command module exposes ``register(subparsers)`` which adds its sub-command(s) and sets
+``func`` on the parsed namespace; ``func(args) -> int`` is the exit code. Engine errors
+(:class:`tracker.errors.TrackerError`) become a one-line ``error: ...`` and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from tracker.errors import TrackerError
+
+# Command modules, in the order they appear in --help. A module that is missing (work in
+# progress) is skipped so the rest of the command line keeps working.
+COMMAND_MODULES = (
+    "tracker.cli.simulate",
+    "tracker.cli.serve",
+    "tracker.cli.model",
+    "tracker.cli.friction",
+    "tracker.cli.audio",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the full ``tracker`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="tracker",
+        description="3DAT: audio-steered pan/tilt camera engine, digital twin and model workbench.",
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for module_name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name == module_name:
+                continue
+            raise
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``tracker`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "func"):
+        parser.print_help()
+        return 1
+    try:
+        return int(args.func(args) or 0)
+    except TrackerError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,30 @@
+"""Static friction with a Stribeck curve: break-away torque above Coulomb at low speed."""
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from tracker.plant.effects.base import Effect, FloatArray, Param
+
+
+def torque_nm(params: Mapping[str, float], theta: FloatArray, omega: FloatArray) -> FloatArray:
+    """Extra friction over Coulomb: (Fs − Fc)·exp(−(ω/vs)²)·sign(ω) (Stribeck)."""
+    w = np.asarray(omega, dtype=float)
+    extra = params["stiction.static_torque"] - params["coulomb.torque"]
+    return extra * np.exp(-((w / params["stiction.velocity"]) ** 2)) * np.sign(w)
+
+
+EFFECT = Effect(
+    name="stiction",
+    kind="torque",
+    description=(
+        "Break-away (static) friction above Coulomb that decays with speed (Stribeck); "
+        "the axis sticks until the applied torque exceeds it (Karnopp)."
+    ),
+    params=(
+        Param("static_torque", "N·m", 0.08, 0.0, 1e6, "break-away torque at rest"),
+        Param("velocity", "rad/s", 0.05, 1e-5, 100.0, "Stribeck velocity"),
+    ),
+    signature="error concentrates at low speed and at starts from rest",
+    torque_nm=torque_nm,
+)

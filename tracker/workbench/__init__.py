@@ -1,0 +1,1 @@
+"""The model workbench: compare the model with measurements, diagnose missing effects, refit."""

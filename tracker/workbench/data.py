@@ -1,0 +1,142 @@
+"""Measurement logs: the one CSV format (``t`` s, ``u`` V, ``theta`` rad) read and written everywhere.
+
+A log has a header row; columns ``t``, ``u`` and ``theta`` are required, other columns are
+allowed and ignored. Time must increase with an even sample interval. Every problem is a
+:class:`DataError` naming the line (1-based, the header is line 1) or the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.errors import DataError
+
+FloatArray = NDArray[np.float64]
+REQUIRED_COLUMNS = ("t", "u", "theta")
+MIN_SAMPLES = 200
+# Sample intervals may jitter by this fraction of the median before the log is called uneven.
+SAMPLING_TOLERANCE = 0.05
+
+
+@dataclass(frozen=True, slots=True)
+class Measurement:
+    """A measured (or simulated) run of one axis. Arrays have shape (n,)."""
+
+    t_s: FloatArray
+    u_v: FloatArray
+    theta_rad: FloatArray
+    source: str = ""
+
+    @property
+    def dt_s(self) -> float:
+        """The sample interval (median of the differences)."""
+        return float(np.median(np.diff(self.t_s)))
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.t_s.size)
+
+    def slice(self, start: int, stop: int) -> Measurement:
+        """Samples ``start:stop`` as a new measurement."""
+        return Measurement(self.t_s[start:stop], self.u_v[start:stop], self.theta_rad[start:stop], self.source)
+
+
+def _parse_float(text: str, line: int, column: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise DataError(f"line {line}: {column} is {text.strip()!r}, not a number") from None
+    if not math.isfinite(value):
+        raise DataError(f"line {line}: {column} is {text.strip()!r}")
+    return value
+
+
+def parse_log(text: str, source: str = "<data>") -> Measurement:
+    """Parse CSV text in the log format; raise DataError naming the line or column."""
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise DataError(f"{source}: empty file, expected a header row with t,u,theta") from None
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    if missing:
+        raise DataError(
+            f"{source}: line 1: missing column {', '.join(missing)} (header has: {', '.join(header)})"
+        )
+    idx = [header.index(c) for c in REQUIRED_COLUMNS]
+    rows: list[tuple[float, float, float]] = []
+    for line_no, row in enumerate(reader, start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) < len(header):
+            raise DataError(f"{source}: line {line_no}: {len(row)} fields, header has {len(header)}")
+        t, u, th = (_parse_float(row[i], line_no, c) for i, c in zip(idx, REQUIRED_COLUMNS, strict=True))
+        rows.append((t, u, th))
+    if not rows:
+        raise DataError(f"{source}: no data rows after the header")
+    arr = np.asarray(rows, dtype=float)
+    return validate(Measurement(arr[:, 0], arr[:, 1], arr[:, 2], source))
+
+
+def validate(m: Measurement) -> Measurement:
+    """Check time increases evenly and there are enough samples; return ``m`` unchanged."""
+    src = m.source or "<data>"
+    if m.n < MIN_SAMPLES:
+        raise DataError(f"{src}: only {m.n} samples; at least {MIN_SAMPLES} are needed to say anything")
+    for name, arr in (("t", m.t_s), ("u", m.u_v), ("theta", m.theta_rad)):
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise DataError(f"{src}: line {bad[0] + 2}: {name} is {arr[bad[0]]!r}")
+    dt = np.diff(m.t_s)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        k = int(bad[0])
+        raise DataError(
+            f"{src}: line {k + 3}: time does not increase (t = {m.t_s[k + 1]:g} after {m.t_s[k]:g})"
+        )
+    med = float(np.median(dt))
+    uneven = np.flatnonzero(np.abs(dt - med) > SAMPLING_TOLERANCE * med)
+    if uneven.size:
+        k = int(uneven[0])
+        raise DataError(
+            f"{src}: line {k + 3}: uneven sampling (step {dt[k]:g} s, the log's step is {med:g} s)"
+        )
+    return m
+
+
+def read_log(path: str | Path) -> Measurement:
+    """Read a measurement log from ``path``."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataError(f"{p}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{p}: cannot read ({exc})") from None
+    return parse_log(text, str(p))
+
+
+def format_log(m: Measurement, extra: dict[str, FloatArray] | None = None) -> str:
+    """The log as CSV text; ``extra`` adds columns (ignored by readers)."""
+    cols = {"t": m.t_s, "u": m.u_v, "theta": m.theta_rad, **(extra or {})}
+    out = io.StringIO()
+    out.write(",".join(cols) + "\n")
+    data = np.column_stack([np.asarray(v, dtype=float) for v in cols.values()])
+    np.savetxt(out, data, delimiter=",", fmt="%.10g")
+    return out.getvalue()
+
+
+def write_log(path: str | Path, m: Measurement, extra: dict[str, FloatArray] | None = None) -> None:
+    """Write ``m`` to ``path`` atomically (a partial file never replaces a good one)."""
+    p = Path(path)
+    tmp = p.with_name(p.name + ".part")
+    tmp.write_text(format_log(m, extra), encoding="utf-8")
+    tmp.replace(p)
