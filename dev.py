@@ -22,6 +22,8 @@ PY = VENV / "bin" / "python"
 STAMP = VENV / ".setup-stamp"
 APT_SERVE = ["espeak-ng", "sox"]
 APT_TEST = ["espeak-ng", "sox", "chromium"]
+# The program each Debian package provides (how we tell whether it is installed).
+APT_BINARY = {"espeak-ng": "espeak-ng", "sox": "sox", "chromium": "chromium"}
 
 
 def run(cmd: list[str], **kw: object) -> None:
@@ -30,7 +32,7 @@ def run(cmd: list[str], **kw: object) -> None:
 
 
 def apt_install(packages: list[str]) -> None:
-    missing = [p for p in packages if not shutil.which("chromium" if p == "chromium" else p.split("-")[0])]
+    missing = [p for p in packages if not shutil.which(APT_BINARY[p])]
     if not missing:
         return
     if os.geteuid() != 0 or not shutil.which("apt-get"):
