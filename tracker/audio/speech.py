@@ -21,7 +21,9 @@ _VOWELS_HZ = np.array(
     [[730, 1090, 2440], [530, 1840, 2480], [270, 2290, 3010], [570, 840, 2410], [300, 870, 2240]],
     dtype=float,
 )
-_BANDWIDTHS_HZ = np.array([90.0, 110.0, 160.0])
+_BANDWIDTHS_HZ = np.array([90.0, 110.0, 160.0, 250.0, 300.0])
+# Higher formants barely move between vowels; they keep the spectrum above 3 kHz realistic.
+_HIGH_FORMANTS_HZ = np.array([3300.0, 4200.0])
 
 _SENTENCES = (
     "Good morning everyone, let us start with the budget for the next quarter.",
@@ -61,7 +63,7 @@ def _resonator(freq_hz: float, bandwidth_hz: float, fs_hz: int) -> tuple[FloatAr
 
 
 def _syllable(rng: np.random.Generator, fs_hz: int, f0_hz: float, length: int) -> FloatArray:
-    """One voiced syllable: glottal pulses with a gliding pitch through three formants."""
+    """One voiced syllable: glottal pulses with a gliding pitch through five formants."""
     t = np.arange(length) / fs_hz
     glide = rng.uniform(-0.25, 0.25)
     f0 = f0_hz * (1.0 + glide * t / max(t[-1], 1e-3)) * (1.0 + 0.01 * rng.standard_normal())
@@ -71,7 +73,10 @@ def _syllable(rng: np.random.Generator, fs_hz: int, f0_hz: float, length: int) -
     # Glottal flow: two real poles give the -12 dB/octave source tilt; differencing adds lip radiation.
     source = signal.lfilter([1.0], [1.0, -1.9, 0.9025], pulses)
     source = np.diff(source, prepend=0.0)
-    vowel = _VOWELS_HZ[rng.integers(len(_VOWELS_HZ))] * rng.uniform(0.92, 1.08)
+    # Breathiness: a little aspiration noise, as in real voices.
+    source = source + 0.05 * np.std(source) * rng.standard_normal(length)
+    vowel = np.concatenate([_VOWELS_HZ[rng.integers(len(_VOWELS_HZ))] * rng.uniform(0.92, 1.08),
+                            _HIGH_FORMANTS_HZ * rng.uniform(0.95, 1.05)])
     voiced = source
     for freq, bandwidth in zip(vowel, _BANDWIDTHS_HZ, strict=True):
         b, a = _resonator(freq, bandwidth, fs_hz)
@@ -95,7 +100,7 @@ def synthetic_speech(duration_s: float, fs_hz: int = 16000, seed: int = 0,
     """Deterministic speech-like signal: phrases of syllables with pauses.
 
     Glottal pulse train (pitch 90-220 Hz, gliding within each syllable and declining over a
-    phrase) through three vowel formant resonators, syllables of 120-300 ms at about 4 per
+    phrase) through five formant resonators (three per vowel, two fixed higher ones), syllables of 120-300 ms at about 4 per
     second with fricative onsets, phrases of 1-3.5 s separated by 0.15-0.6 s pauses.
 
     Parameters

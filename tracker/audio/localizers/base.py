@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.audio.array import MicArray, unit_vector
-from tracker.errors import DataError
+from tracker.errors import ConfigError, DataError
 
 FloatArray = NDArray[np.float64]
 
@@ -62,18 +62,30 @@ def check_frame(frame: FloatArray, array: MicArray, min_samples: int) -> FloatAr
 
 
 def direction_grid(
-    array: MicArray, azimuth_step_rad: float, elevation_step_rad: float
+    array: MicArray,
+    azimuth_step_rad: float,
+    elevation_step_rad: float,
+    azimuth_range_rad: tuple[float, float] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Candidate directions the array can tell apart.
 
     Azimuth spans the full circle when the array has depth along x, otherwise the front half
-    (-90°..90°); elevation spans -80°..80° when the array has height, otherwise 0 only.
+    (-90°..90°); ``azimuth_range_rad`` narrows it further (an array on a wall, or under a
+    camera that cannot turn around, has nothing to find behind it). Elevation spans
+    -80°..80° when the array has height, otherwise 0 only.
 
     Returns
     -------
     azimuth_rad, elevation_rad : ndarray, shape (n_grid,) each
     """
-    if array.resolves_front_back:
+    if azimuth_range_rad is not None:
+        lo, hi = azimuth_range_rad
+        if not (-2 * np.pi <= lo < hi <= 2 * np.pi):
+            raise ConfigError(f"azimuth_range_rad={azimuth_range_rad} must be increasing, within ±2π")
+        if not array.resolves_front_back:
+            lo, hi = max(lo, -np.pi / 2), min(hi, np.pi / 2)
+        az = np.linspace(lo, hi, max(2, int(round((hi - lo) / azimuth_step_rad)) + 1))
+    elif array.resolves_front_back:
         az = np.arange(-np.pi, np.pi, azimuth_step_rad)
     else:
         az = np.linspace(-np.pi / 2, np.pi / 2, int(round(np.pi / azimuth_step_rad)) + 1)

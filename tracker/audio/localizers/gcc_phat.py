@@ -12,6 +12,7 @@ from tracker.audio.localizers.spectra import (
     gcc,
     pair_cross_spectra,
     phat,
+    snr_weights,
     stft,
 )
 from tracker.units import SPEED_OF_SOUND_M_PER_S
@@ -48,7 +49,8 @@ class GccPhat:
         delays_s, peaks : ndarray, shape (n_pairs,) each
         """
         spectra = stft(frame, self.settings.nfft)
-        g = gcc(phat(pair_cross_spectra(spectra, self.array), self._mask), self.settings)
+        cross = phat(pair_cross_spectra(spectra, self.array), self._mask, self.settings.phat_beta)
+        g = gcc(cross * snr_weights(spectra)[None, :], self.settings)
         n_lags = g.shape[1]
         delays = np.empty(len(self.array.pairs))
         peaks = np.empty(len(self.array.pairs))

@@ -24,14 +24,17 @@ class SpectralSettings:
     nfft : int
         FFT length in samples (512 = 32 ms at 16 kHz).
     band_hz : tuple of float
-        Frequencies kept for localization; speech energy is in 200 Hz - 5 kHz.
+        Frequencies kept for localization; voiced speech carries direction cues in 200 Hz - 7.5 kHz (bins above Nyquist are ignored).
     upsample : int
         GCC interpolation factor: lag resolution is ``1 / (fs * upsample)``.
+    phat_beta : float
+        Exponent of the PHAT weighting (1 = PHAT); see :func:`phat`.
     """
 
     nfft: int = 512
-    band_hz: tuple[float, float] = (200.0, 5000.0)
+    band_hz: tuple[float, float] = (200.0, 7500.0)
     upsample: int = 16
+    phat_beta: float = 1.0
 
 
 def stft(frame: FloatArray, nfft: int) -> ComplexArray:
@@ -81,9 +84,33 @@ def pair_cross_spectra(spectra: ComplexArray, array: MicArray, weights: FloatArr
     return cross.sum(axis=1)
 
 
-def phat(cross: ComplexArray, mask: NDArray[np.bool_]) -> ComplexArray:
-    """PHAT weighting ``C / |C|`` restricted to ``mask``; shape unchanged."""
-    return np.where(mask[None, :], cross / (np.abs(cross) + _EPS), 0.0)
+def snr_weights(spectra: ComplexArray, noise_quantile: float = 0.1) -> FloatArray:
+    """Per-bin weight ``max(0, 1 - N(f) / S(f))`` from the window's own statistics.
+
+    ``S`` is the mean power over frames and mics, ``N`` a low quantile over frames (the
+    stationary noise between syllables). Bins that speech never lifts above the noise, such
+    as those between harmonics, get little weight after PHAT has whitened them.
+
+    Parameters
+    ----------
+    spectra : ndarray, shape (n_mics, n_frames, n_freq)
+
+    Returns
+    -------
+    ndarray, shape (n_freq,), values in [0, 1]
+    """
+    power = np.mean(np.abs(spectra) ** 2, axis=0)
+    noise = np.quantile(power, noise_quantile, axis=0)
+    return np.asarray(np.clip(1.0 - noise / (power.mean(axis=0) + 1e-30), 0.0, 1.0))
+
+
+def phat(cross: ComplexArray, mask: NDArray[np.bool_], beta: float = 1.0) -> ComplexArray:
+    """PHAT weighting ``C / |C|**beta`` restricted to ``mask``; shape unchanged.
+
+    ``beta = 1`` is plain PHAT (every bin counts the same); ``beta < 1`` (PHAT-beta) keeps some
+    of the spectral shape so bins between speech harmonics, which hold only noise, count less.
+    """
+    return np.where(mask[None, :], cross / (np.abs(cross) + _EPS) ** beta, 0.0)
 
 
 def gcc(cross: ComplexArray, settings: SpectralSettings) -> FloatArray:
@@ -97,9 +124,9 @@ def gcc(cross: ComplexArray, settings: SpectralSettings) -> FloatArray:
     ndarray, shape (n_pairs, nfft * upsample)
     """
     n_lags = settings.nfft * settings.upsample
-    n_used = np.count_nonzero(np.abs(cross[0]) > 0) or 1
+    total = np.sum(np.abs(cross), axis=-1, keepdims=True) + _EPS
     # irfft divides by n_lags and counts each positive bin twice (Hermitian symmetry).
-    return np.fft.irfft(cross, n=n_lags, axis=-1) * (n_lags / (2.0 * n_used))
+    return np.fft.irfft(cross, n=n_lags, axis=-1) * (n_lags / (2.0 * total))
 
 
 @dataclass(frozen=True, slots=True)

@@ -47,6 +47,7 @@ class SrpDpd:
         smooth_bins: int = 5,
         azimuth_step_rad: float = np.deg2rad(2.0),
         elevation_step_rad: float = np.deg2rad(5.0),
+        azimuth_range_rad: tuple[float, float] | None = None,
     ) -> None:
         self.array = array
         self.fs_hz = int(fs_hz)
@@ -55,7 +56,7 @@ class SrpDpd:
         self.smooth_frames = smooth_frames
         self.smooth_bins = smooth_bins
         self._mask = band_mask(self.fs_hz, self.settings)
-        az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad)
+        az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad, azimuth_range_rad)
         self._grid = SrpGrid(array, self.fs_hz, az, el, self.settings)
 
     def dominance(self, spectra: FloatArray) -> FloatArray:

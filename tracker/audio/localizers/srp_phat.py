@@ -19,6 +19,7 @@ from tracker.audio.localizers.spectra import (
     gcc,
     pair_cross_spectra,
     phat,
+    snr_weights,
     stft,
 )
 
@@ -27,7 +28,9 @@ class SrpPhat:
     """SRP-PHAT over all pairs (DiBiase 2000), vectorised as GCC lookups on a grid.
 
     The cross-spectra are summed over the window's STFT frames before PHAT weighting, so
-    loud (speech) frames dominate the phase estimate rather than every frame counting the same.
+    loud (speech) frames dominate the phase estimate rather than every frame counting the same,
+    and each frequency is then weighted by how far speech rose above the noise in it
+    (:func:`~tracker.audio.localizers.spectra.snr_weights`).
     Coarse grid 2° in azimuth (5° in elevation when the array has height), refined to 0.25°.
     """
 
@@ -40,18 +43,25 @@ class SrpPhat:
         settings: SpectralSettings | None = None,
         azimuth_step_rad: float = np.deg2rad(2.0),
         elevation_step_rad: float = np.deg2rad(5.0),
+        azimuth_range_rad: tuple[float, float] | None = None,
+        per_frame_phat: bool = False,
     ) -> None:
         self.array = array
         self.fs_hz = int(fs_hz)
         self.settings = settings or SpectralSettings()
         self._mask = band_mask(self.fs_hz, self.settings)
-        az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad)
+        az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad, azimuth_range_rad)
+        self.per_frame_phat = per_frame_phat
         self._grid = SrpGrid(array, self.fs_hz, az, el, self.settings)
 
     def cross_spectra(self, frame: FloatArray) -> FloatArray:
         """PHAT-weighted pair cross-spectra of one window; shape (n_pairs, n_freq)."""
         spectra = stft(frame, self.settings.nfft)
-        return phat(pair_cross_spectra(spectra, self.array), self._mask)
+        weights = snr_weights(spectra)
+        if self.per_frame_phat:  # every STFT frame gets one vote (pyroomacoustics' SRP does this)
+            spectra = spectra / (np.abs(spectra) + 1e-12)
+        cross = phat(pair_cross_spectra(spectra, self.array), self._mask, self.settings.phat_beta)
+        return np.asarray(cross * weights[None, :])
 
     def locate(self, frame: FloatArray) -> DirectionEstimate:
         """Direction of the strongest source in ``frame``, shape (n_mics, n_samples)."""

@@ -1,0 +1,149 @@
+"""Recording in, per-window estimates and the tracked camera direction out (offline or streamed)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.audio.array import MicArray
+from tracker.audio.localizers import DEFAULT_LOCALIZER, Localizer, make_localizer
+from tracker.audio.tracking import TalkerTracker, TrackerSettings, TrackPoint
+from tracker.audio.vad import SpeechDetector, VadSettings
+from tracker.errors import ConfigError, DataError
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class WindowSettings:
+    """Analysis windows: ``window_s`` long, one every ``hop_s``."""
+
+    window_s: float = 0.5
+    hop_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not 0.05 <= self.window_s <= 10.0:
+            raise ConfigError(f"window_s={self.window_s} outside 0.05-10 s")
+        if not 0.01 <= self.hop_s <= self.window_s:
+            raise ConfigError(f"hop_s={self.hop_s} must be in 0.01 s..window_s")
+
+
+@dataclass(frozen=True, slots=True)
+class FrameEstimate:
+    """One analysis window's raw estimate.
+
+    ``t_s`` is the window centre, ``end_s`` the moment a live system would have it.
+    """
+
+    t_s: float
+    end_s: float
+    azimuth_rad: float
+    elevation_rad: float | None
+    confidence: float
+    speech: bool
+
+
+@dataclass(frozen=True, slots=True)
+class LocateResult:
+    """Per-window estimates and the camera track (one point per window)."""
+
+    fs_hz: int
+    method: str
+    frames: tuple[FrameEstimate, ...]
+    track: tuple[TrackPoint, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``tracker audio locate --json`` object (degrees, seconds)."""
+
+        def deg(value: float | None) -> float | None:
+            return None if value is None else round(float(np.rad2deg(value)), 3)
+
+        return {
+            "fs": int(self.fs_hz),
+            "frames": [
+                {
+                    "t": round(f.t_s, 4),
+                    "azimuth_deg": deg(f.azimuth_rad),
+                    "elevation_deg": deg(f.elevation_rad),
+                    "confidence": round(float(f.confidence), 4),
+                    "speech": bool(f.speech),
+                }
+                for f in self.frames
+            ],
+            "track": [
+                {"t": round(p.t_s, 4), "azimuth_deg": deg(p.azimuth_rad),
+                 "elevation_deg": deg(p.elevation_rad)}
+                for p in self.track
+            ],
+        }
+
+
+@dataclass
+class Pipeline:
+    """VAD + localizer + talker tracker bound to one array and sample rate."""
+
+    array: MicArray
+    fs_hz: int
+    method: str = DEFAULT_LOCALIZER
+    windows: WindowSettings = field(default_factory=WindowSettings)
+    vad: VadSettings = field(default_factory=VadSettings)
+    tracking: TrackerSettings = field(default_factory=TrackerSettings)
+    localizer_options: dict[str, Any] = field(default_factory=dict)
+    localizer: Localizer = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.localizer = make_localizer(self.method, self.array, self.fs_hz,
+                                        **self.localizer_options)
+
+    def estimate_frames(self, audio: FloatArray) -> tuple[FrameEstimate, ...]:
+        """Raw estimate of every window of ``audio``, shape (n_mics, n_samples)."""
+        audio = check_recording(audio, self.array, self.fs_hz, self.windows.window_s)
+        detector = SpeechDetector(self.fs_hz, self.vad)
+        features = detector.features(audio.mean(axis=0))
+        n_win = int(round(self.windows.window_s * self.fs_hz))
+        n_hop = int(round(self.windows.hop_s * self.fs_hz))
+        frames = []
+        for start in range(0, audio.shape[1] - n_win + 1, n_hop):
+            start_s, end_s = start / self.fs_hz, (start + n_win) / self.fs_hz
+            speech = detector.window_is_speech(features, start_s, end_s)
+            estimate = self.localizer.locate(audio[:, start : start + n_win])
+            frames.append(FrameEstimate(0.5 * (start_s + end_s), end_s, estimate.azimuth_rad,
+                                        estimate.elevation_rad, estimate.confidence, speech))
+        return tuple(frames)
+
+    def track(self, frames: tuple[FrameEstimate, ...]) -> tuple[TrackPoint, ...]:
+        """Run the talker tracker over frames in time order (fresh tracker each call)."""
+        tracker = TalkerTracker(self.tracking)
+        return tuple(
+            tracker.step(f.t_s, f.azimuth_rad, f.elevation_rad, f.confidence, f.speech)
+            for f in frames
+        )
+
+    def run(self, audio: FloatArray) -> LocateResult:
+        """Frames and track of a whole recording."""
+        frames = self.estimate_frames(audio)
+        return LocateResult(self.fs_hz, self.method, frames, self.track(frames))
+
+
+def check_recording(audio: FloatArray, array: MicArray, fs_hz: int, window_s: float
+                    ) -> FloatArray:
+    """Validate a recording against the array; returns float64 (n_mics, n_samples)."""
+    audio = np.asarray(audio, dtype=float)
+    if audio.ndim != 2 or audio.shape[0] != array.n_mics:
+        channels = audio.shape[0] if audio.ndim == 2 else 1
+        raise DataError(
+            f"recording has {channels} channel(s) but {array.name} has {array.n_mics} mics"
+        )
+    if audio.shape[1] < int(window_s * fs_hz):
+        raise DataError(
+            f"recording is {audio.shape[1] / fs_hz:.3f} s long, shorter than one "
+            f"{window_s} s window"
+        )
+    if not np.all(np.isfinite(audio)):
+        raise DataError("recording contains NaN or infinite samples")
+    if float(np.max(np.abs(audio))) < 1e-6:
+        raise DataError("recording is silent (all samples below 1e-6 full scale)")
+    return audio

@@ -1,0 +1,259 @@
+"""Talker tracking and the camera-operator policy: Kalman smoothing, gating, switching, wide shot.
+
+Frames (direction estimates flagged as speech or not) go in one at a time, in time order; each
+returns the direction the camera should point at. The policy imitates a good operator:
+
+* a direction must persist for ``reaction_time_s`` before the camera goes there (a single
+  wrong estimate, a cough or a reflection does not move it);
+* after a switch the camera stays at least ``min_hold_s`` unless the floor was silent for
+  longer than ``pause_tolerance_s`` (then the next talker is taken as soon as confirmed);
+* pauses shorter than ``pause_tolerance_s`` keep a talker's claim to the floor;
+* within a talker the shot moves only when the smoothed direction leaves a ``deadband_rad``
+  (then it follows until the talker stands still again);
+* after ``wide_after_switches`` switches back and forth between the same two directions within
+  ``wide_window_s``, the camera takes a wide shot between them until one talker has held the
+  floor for ``wide_release_s``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tracker.errors import ConfigError
+
+
+def _wrap(angle_rad: float) -> float:
+    """Wrap into (-pi, pi]."""
+    return float(-((-angle_rad + np.pi) % (2 * np.pi) - np.pi))
+
+
+@dataclass(frozen=True, slots=True)
+class TrackerSettings:
+    """Talker tracker and switching policy; every field adjustable, defaults for a meeting room."""
+
+    min_confidence: float = 0.05
+    measurement_std_rad: float = float(np.deg2rad(3.0))
+    accel_std_rad_s2: float = float(np.deg2rad(40.0))
+    gate_rad: float = float(np.deg2rad(12.0))
+    reaction_time_s: float = 0.3
+    candidate_share: float = 0.6
+    min_hold_s: float = 2.0
+    pause_tolerance_s: float = 1.5
+    deadband_rad: float = float(np.deg2rad(3.0))
+    still_rate_rad_s: float = float(np.deg2rad(3.0))
+    wide_after_switches: int = 4
+    wide_window_s: float = 20.0
+    wide_release_s: float = 6.0
+    wide_azimuth_rad: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("reaction_time_s", "min_hold_s", "pause_tolerance_s", "wide_window_s",
+                     "wide_release_s", "gate_rad", "measurement_std_rad", "accel_std_rad_s2"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value < 0:
+                raise ConfigError(f"tracker setting {name}={value} must be a finite value >= 0")
+        if self.deadband_rad < 0 or self.deadband_rad > np.deg2rad(30):
+            raise ConfigError(f"deadband_rad={self.deadband_rad} outside 0-30°")
+        if not 0.0 < self.candidate_share <= 1.0:
+            raise ConfigError(f"candidate_share={self.candidate_share} must be in (0, 1]")
+        if self.wide_after_switches < 2:
+            raise ConfigError(f"wide_after_switches={self.wide_after_switches} must be >= 2")
+
+
+@dataclass(frozen=True, slots=True)
+class TrackPoint:
+    """The camera target after one frame.
+
+    Attributes
+    ----------
+    t_s : frame time.
+    azimuth_rad, elevation_rad : where the camera should point (elevation None if unknown).
+    shot : "none" (no talker yet), "talker" or "wide".
+    talker_azimuth_rad : the smoothed direction of the current talker (None before the first).
+    """
+
+    t_s: float
+    azimuth_rad: float
+    elevation_rad: float | None
+    shot: str
+    talker_azimuth_rad: float | None
+
+
+@dataclass(slots=True)
+class _Kalman:
+    """Constant-velocity Kalman filter on an angle (state: angle, rate)."""
+
+    x: np.ndarray
+    p: np.ndarray
+    t_s: float
+
+    def predict(self, t_s: float, accel_std: float) -> None:
+        dt = max(0.0, t_s - self.t_s)
+        f = np.array([[1.0, dt], [0.0, 1.0]])
+        q = accel_std**2 * np.array([[dt**4 / 4, dt**3 / 2], [dt**3 / 2, dt**2]])
+        self.x = f @ self.x
+        self.x[0] = _wrap(self.x[0])
+        self.p = f @ self.p @ f.T + q
+        self.t_s = t_s
+
+    def innovation(self, z: float) -> float:
+        return _wrap(z - self.x[0])
+
+    def update(self, z: float, r: float) -> None:
+        y = self.innovation(z)
+        s = self.p[0, 0] + r
+        k = self.p[:, 0] / s
+        self.x = self.x + k * y
+        self.x[0] = _wrap(self.x[0])
+        self.p = self.p - np.outer(k, self.p[0, :])
+
+
+@dataclass(slots=True)
+class _Candidate:
+    """Evidence for a new direction (unit-vector sum for a circular mean)."""
+
+    first_t_s: float
+    last_t_s: float
+    sum_vec: complex
+    hits: int = 1
+    others: int = 0
+
+    @property
+    def azimuth_rad(self) -> float:
+        return float(np.angle(self.sum_vec))
+
+
+@dataclass(slots=True)
+class TalkerTracker:
+    """Feed frames with :meth:`step`; see the module docstring for the policy."""
+
+    settings: TrackerSettings = field(default_factory=TrackerSettings)
+    _talker: _Kalman | None = None
+    _elevation_rad: float | None = None
+    _candidate: _Candidate | None = None
+    _last_switch_t_s: float = -np.inf
+    _last_speech_t_s: float = -np.inf
+    _target_rad: float = 0.0
+    _following: bool = False
+    _switches: list[tuple[float, float, float]] = field(default_factory=list)
+    _wide_rad: float | None = None
+
+    def step(self, t_s: float, azimuth_rad: float, elevation_rad: float | None,
+             confidence: float, speech: bool) -> TrackPoint:
+        """Take one frame (time order) and return the camera target after it."""
+        s = self.settings
+        usable = speech and confidence >= s.min_confidence and np.isfinite(azimuth_rad)
+        if usable:
+            floor_was_open = t_s - self._last_speech_t_s > s.pause_tolerance_s
+            self._observe(t_s, _wrap(azimuth_rad), elevation_rad, floor_was_open)
+            self._last_speech_t_s = t_s
+        return self._target(t_s)
+
+    # -- talker evidence -------------------------------------------------------------------
+
+    def _observe(self, t_s: float, z: float, elevation_rad: float | None, floor_open: bool
+                 ) -> None:
+        s = self.settings
+        if self._talker is not None:
+            if floor_open:
+                self._talker.x[1] = 0.0  # a talker who paused is not still walking
+            self._talker.predict(t_s, s.accel_std_rad_s2)
+            gate = max(s.gate_rad, 3.0 * float(np.sqrt(self._talker.p[0, 0])))
+            if abs(self._talker.innovation(z)) <= gate:
+                self._talker.update(z, s.measurement_std_rad**2)
+                self._update_elevation(elevation_rad)
+                if self._candidate is not None:
+                    self._candidate.others += 1
+                self._expire_candidate(t_s)
+                return
+        self._add_candidate_evidence(t_s, z)
+        c = self._candidate
+        assert c is not None
+        confirmed = (t_s - c.first_t_s >= s.reaction_time_s
+                     and c.hits >= s.candidate_share * (c.hits + c.others))
+        may_switch = floor_open or t_s - self._last_switch_t_s >= s.min_hold_s
+        if confirmed and (may_switch or self._talker is None):
+            self._switch(t_s, c.azimuth_rad, elevation_rad)
+
+    def _add_candidate_evidence(self, t_s: float, z: float) -> None:
+        s = self.settings
+        self._expire_candidate(t_s)
+        c = self._candidate
+        if c is not None and abs(_wrap(z - c.azimuth_rad)) <= s.gate_rad:
+            c.sum_vec += complex(np.cos(z), np.sin(z))
+            c.hits += 1
+            c.last_t_s = t_s
+        elif c is None or c.hits <= 1:
+            self._candidate = _Candidate(t_s, t_s, complex(np.cos(z), np.sin(z)))
+        else:
+            c.others += 1  # a stray estimate: neither the talker nor the candidate
+
+    def _expire_candidate(self, t_s: float) -> None:
+        c = self._candidate
+        if c is not None and t_s - c.last_t_s > self.settings.pause_tolerance_s:
+            self._candidate = None
+
+    def _switch(self, t_s: float, azimuth_rad: float, elevation_rad: float | None) -> None:
+        s = self.settings
+        previous = float(self._talker.x[0]) if self._talker is not None else None
+        p0 = np.diag([s.measurement_std_rad**2, np.deg2rad(10.0) ** 2])
+        self._talker = _Kalman(np.array([azimuth_rad, 0.0]), p0, t_s)
+        self._elevation_rad = elevation_rad
+        self._candidate = None
+        self._last_switch_t_s = t_s
+        self._target_rad = azimuth_rad
+        self._following = False
+        if previous is not None:
+            self._switches.append((t_s, previous, azimuth_rad))
+            self._update_wide(t_s)
+
+    def _update_elevation(self, elevation_rad: float | None) -> None:
+        if elevation_rad is None:
+            return
+        if self._elevation_rad is None:
+            self._elevation_rad = elevation_rad
+        else:
+            self._elevation_rad += 0.2 * (elevation_rad - self._elevation_rad)
+
+    # -- shot policy -----------------------------------------------------------------------
+
+    def _update_wide(self, t_s: float) -> None:
+        """Go wide after repeated switching between the same two directions."""
+        s = self.settings
+        recent = [sw for sw in self._switches if t_s - sw[0] <= s.wide_window_s]
+        self._switches = recent
+        if len(recent) < s.wide_after_switches:
+            return
+        ends_a = [sw[1] for sw in recent]
+        ends_b = [sw[2] for sw in recent]
+        a, b = recent[-1][1], recent[-1][2]
+        near = 2.0 * s.gate_rad
+        alternating = all(
+            min(abs(_wrap(x - a)), abs(_wrap(x - b))) <= near for x in ends_a + ends_b
+        )
+        if alternating:
+            mid = float(np.angle(np.exp(1j * a) + np.exp(1j * b)))
+            self._wide_rad = s.wide_azimuth_rad if s.wide_azimuth_rad is not None else mid
+
+    def _target(self, t_s: float) -> TrackPoint:
+        s = self.settings
+        if self._talker is None:
+            return TrackPoint(t_s, self._target_rad, self._elevation_rad, "none", None)
+        talker = float(self._talker.x[0])
+        if self._wide_rad is not None:
+            if t_s - self._last_switch_t_s < s.wide_release_s:
+                return TrackPoint(t_s, self._wide_rad, None, "wide", talker)
+            self._wide_rad = None
+            self._switches.clear()
+            self._target_rad = talker
+        offset = abs(_wrap(talker - self._target_rad))
+        rate = abs(float(self._talker.x[1]))
+        if offset > s.deadband_rad:
+            self._following = True
+        elif rate < s.still_rate_rad_s:
+            self._following = False
+        if self._following:
+            self._target_rad = talker
+        return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)

@@ -1,0 +1,129 @@
+"""Speech activity: voiced, pitched, speech-band sound clearly above a tracked noise floor."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+from scipy.ndimage import minimum_filter1d, uniform_filter1d
+
+from tracker.errors import ConfigError
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True, slots=True)
+class VadSettings:
+    """Speech activity detection settings.
+
+    A short frame counts as voiced speech when all of these hold:
+
+    * level at least ``level_above_floor_db`` above the noise floor (the minimum of the
+      smoothed level over the trailing ``floor_window_s``): steady fans and hum never pass;
+    * harmonicity (normalised autocorrelation peak at a lag in ``pitch_range_hz``) at least
+      ``harmonicity_min``: typing, door slams, coughs and other noise bursts are not periodic;
+    * at least ``speech_band_min`` of the energy in 200-4000 Hz: low rumbles and door thuds
+      are not.
+
+    A window is speech when its voiced frames add up to ``min_voiced_s`` (a lone periodic
+    click or a cough's voiced instant is too short).
+    """
+
+    frame_s: float = 0.032
+    hop_s: float = 0.016
+    pitch_range_hz: tuple[float, float] = (80.0, 400.0)
+    harmonicity_min: float = 0.45
+    level_above_floor_db: float = 6.0
+    floor_window_s: float = 3.0
+    speech_band_min: float = 0.5
+    min_voiced_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not 0 < self.hop_s <= self.frame_s:
+            raise ConfigError(f"VAD hop_s={self.hop_s} must be in (0, frame_s={self.frame_s}]")
+        lo, hi = self.pitch_range_hz
+        if not 30.0 <= lo < hi <= 1000.0:
+            raise ConfigError(f"VAD pitch_range_hz={self.pitch_range_hz} outside 30-1000 Hz")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class VadFeatures:
+    """Per-frame features of a mono signal; every array has shape (n_frames,).
+
+    Attributes
+    ----------
+    times_s : frame centre times.
+    level_db : frame energy in dB.
+    floor_db : tracked noise floor in dB (causal minimum).
+    harmonicity : peak of the window-corrected normalised autocorrelation in the pitch range.
+    speech_band : share of energy in 200-4000 Hz.
+    voiced : the per-frame decision.
+    """
+
+    times_s: FloatArray
+    level_db: FloatArray
+    floor_db: FloatArray
+    harmonicity: FloatArray
+    speech_band: FloatArray
+    voiced: BoolArray
+
+
+class SpeechDetector:
+    """Frame-level voiced-speech detection over a whole signal (vectorised over frames)."""
+
+    def __init__(self, fs_hz: int, settings: VadSettings | None = None) -> None:
+        self.fs_hz = int(fs_hz)
+        self.settings = settings or VadSettings()
+        s = self.settings
+        self.frame = int(round(s.frame_s * fs_hz))
+        self.hop = int(round(s.hop_s * fs_hz))
+        self.nfft = int(2 ** np.ceil(np.log2(2 * self.frame)))
+        self._window = np.hanning(self.frame)
+        w_acf = np.fft.irfft(np.abs(np.fft.rfft(self._window, self.nfft)) ** 2)
+        self._window_acf = w_acf / w_acf[0]
+        self._lags = np.arange(
+            int(fs_hz / s.pitch_range_hz[1]), int(np.ceil(fs_hz / s.pitch_range_hz[0])) + 1
+        )
+        self._sos_low = signal.butter(4, min(1000.0, 0.45 * fs_hz), "lowpass", fs=fs_hz,
+                                      output="sos")
+        freqs = np.fft.rfftfreq(self.nfft, 1.0 / fs_hz)
+        self._band = (freqs >= 200.0) & (freqs <= 4000.0)
+
+    def features(self, mono: FloatArray) -> VadFeatures:
+        """Features of ``mono``, shape (n_samples,); see :class:`VadFeatures`."""
+        mono = np.asarray(mono, dtype=float)
+        if mono.size < self.frame:
+            mono = np.pad(mono, (0, self.frame - mono.size))
+        n_frames = 1 + (mono.size - self.frame) // self.hop
+        index = np.arange(n_frames)[:, None] * self.hop + np.arange(self.frame)[None, :]
+        frames = mono[index] * self._window
+        spectrum = np.abs(np.fft.rfft(frames, self.nfft, axis=-1)) ** 2
+        total = spectrum.sum(axis=-1) + 1e-20
+        speech_band = spectrum[:, self._band].sum(axis=-1) / total
+        level_db = 10 * np.log10(np.mean(frames**2, axis=-1) + 1e-20)
+        low = signal.sosfilt(self._sos_low, mono)[index] * self._window
+        acf = np.fft.irfft(np.abs(np.fft.rfft(low, self.nfft, axis=-1)) ** 2, axis=-1)
+        acf = acf[:, : self.frame] / (acf[:, :1] + 1e-20) / self._window_acf[None, : self.frame]
+        harmonicity = np.clip(acf[:, self._lags].max(axis=-1), 0.0, 1.0)
+        floor_frames = max(1, int(round(self.settings.floor_window_s / self.settings.hop_s)))
+        smoothed = uniform_filter1d(level_db, size=5, mode="nearest")
+        # Causal minimum over the trailing window: shift the centred filter's origin.
+        floor_db = minimum_filter1d(smoothed, size=floor_frames, mode="nearest",
+                                    origin=(floor_frames - 1) // 2)
+        s = self.settings
+        voiced = (
+            (level_db >= floor_db + s.level_above_floor_db)
+            & (harmonicity >= s.harmonicity_min)
+            & (speech_band >= s.speech_band_min)
+        )
+        times = (np.arange(n_frames) * self.hop + self.frame / 2) / self.fs_hz
+        return VadFeatures(times, level_db, floor_db, harmonicity, speech_band, voiced)
+
+    def window_is_speech(self, features: VadFeatures, start_s: float, end_s: float) -> bool:
+        """True when the voiced frames in ``[start_s, end_s)`` add up to ``min_voiced_s``."""
+        inside = (features.times_s >= start_s) & (features.times_s < end_s)
+        return bool(np.count_nonzero(features.voiced & inside) * self.settings.hop_s
+                    >= self.settings.min_voiced_s)
