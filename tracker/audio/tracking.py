@@ -159,8 +159,11 @@ class TalkerTracker:
         if self._talker is not None:
             if floor_open:
                 self._talker.x[1] = 0.0  # a talker who paused is not still walking
+            before = (self._talker.x.copy(), self._talker.p.copy(), self._talker.t_s)
             self._talker.predict(t_s, s.accel_std_rad_s2)
-            gate = max(s.gate_rad, 3.0 * float(np.sqrt(self._talker.p[0, 0])))
+            # The gate widens with the track's uncertainty, but never enough to swallow a
+            # neighbour: at most twice the nominal gate.
+            gate = float(np.clip(3.0 * np.sqrt(self._talker.p[0, 0]), s.gate_rad, 2 * s.gate_rad))
             if abs(self._talker.innovation(z)) <= gate:
                 self._talker.update(z, s.measurement_std_rad**2)
                 self._update_elevation(elevation_rad)
@@ -168,6 +171,8 @@ class TalkerTracker:
                     self._candidate.others += 1
                 self._expire_candidate(t_s)
                 return
+            # Not this talker: the track stays where its own evidence put it (no coasting).
+            self._talker.x, self._talker.p, self._talker.t_s = before
         self._add_candidate_evidence(t_s, z)
         c = self._candidate
         assert c is not None
@@ -229,7 +234,7 @@ class TalkerTracker:
         ends_a = [sw[1] for sw in recent]
         ends_b = [sw[2] for sw in recent]
         a, b = recent[-1][1], recent[-1][2]
-        near = 2.0 * s.gate_rad
+        near = s.gate_rad
         alternating = all(
             min(abs(_wrap(x - a)), abs(_wrap(x - b))) <= near for x in ends_a + ends_b
         )

@@ -26,7 +26,11 @@ class VadSettings:
     * harmonicity (normalised autocorrelation peak at a lag in ``pitch_range_hz``) at least
       ``harmonicity_min``: typing, door slams, coughs and other noise bursts are not periodic;
     * at least ``speech_band_min`` of the energy in 200-4000 Hz: low rumbles and door thuds
-      are not.
+      are not;
+    * the level stands at least ``modulation_min_db`` above its minimum both in the half
+      ``modulation_window_s`` before and the half after the frame: speech comes in syllables,
+      while a fan or hum that was just switched on only rises (the noise floor needs
+      ``floor_window_s`` to learn it). This looks ahead by half that window.
 
     A window is speech when its voiced frames add up to ``min_voiced_s`` (a lone periodic
     click or a cough's voiced instant is too short).
@@ -40,6 +44,8 @@ class VadSettings:
     floor_window_s: float = 3.0
     speech_band_min: float = 0.5
     min_voiced_s: float = 0.1
+    modulation_min_db: float = 3.0
+    modulation_window_s: float = 0.5
 
     def __post_init__(self) -> None:
         if not 0 < self.hop_s <= self.frame_s:
@@ -60,6 +66,7 @@ class VadFeatures:
     floor_db : tracked noise floor in dB (causal minimum).
     harmonicity : peak of the window-corrected normalised autocorrelation in the pitch range.
     speech_band : share of energy in 200-4000 Hz.
+    modulation_db : rise over the minimum level on the weaker side (before/after) of each frame.
     voiced : the per-frame decision.
     """
 
@@ -68,6 +75,7 @@ class VadFeatures:
     floor_db: FloatArray
     harmonicity: FloatArray
     speech_band: FloatArray
+    modulation_db: FloatArray
     voiced: BoolArray
 
 
@@ -114,13 +122,23 @@ class SpeechDetector:
         floor_db = minimum_filter1d(smoothed, size=floor_frames, mode="nearest",
                                     origin=(floor_frames - 1) // 2)
         s = self.settings
+        half = max(1, int(round(s.modulation_window_s / 2 / s.hop_s)))
+        # Rise over the lowest level in the half window before AND after the frame: syllables
+        # dip on both sides, a fan being switched on only on one.
+        dip_before = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
+                                                 origin=(half - 1) // 2)
+        dip_after = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
+                                                origin=-(half // 2))
+        modulation_db = np.minimum(dip_before, dip_after)
         voiced = (
             (level_db >= floor_db + s.level_above_floor_db)
             & (harmonicity >= s.harmonicity_min)
             & (speech_band >= s.speech_band_min)
+            & (modulation_db >= s.modulation_min_db)
         )
         times = (np.arange(n_frames) * self.hop + self.frame / 2) / self.fs_hz
-        return VadFeatures(times, level_db, floor_db, harmonicity, speech_band, voiced)
+        return VadFeatures(times, level_db, floor_db, harmonicity, speech_band, modulation_db,
+                           voiced)
 
     def window_is_speech(self, features: VadFeatures, start_s: float, end_s: float) -> bool:
         """True when the voiced frames in ``[start_s, end_s)`` add up to ``min_voiced_s``."""

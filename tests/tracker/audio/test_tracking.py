@@ -1,0 +1,120 @@
+"""Talker tracker and camera policy on scripted frame streams with known truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracker.audio.tracking import TalkerTracker, TrackerSettings
+from tracker.errors import ConfigError
+
+HOP_S = 0.1
+DEG = np.pi / 180.0
+
+
+def run(azimuths_deg, speech=None, settings=None, seed=0, noise_deg=1.5):
+    """Feed one frame per hop; returns (times, target_deg, shots)."""
+    rng = np.random.default_rng(seed)
+    tracker = TalkerTracker(settings or TrackerSettings())
+    azimuths_deg = np.asarray(azimuths_deg, dtype=float)
+    speech = np.ones(azimuths_deg.size, bool) if speech is None else np.asarray(speech)
+    times, targets, shots = [], [], []
+    for k, (az, is_speech) in enumerate(zip(azimuths_deg, speech, strict=True)):
+        measured = az + noise_deg * rng.standard_normal()
+        point = tracker.step(k * HOP_S, measured * DEG, None, 0.5, bool(is_speech))
+        times.append(k * HOP_S)
+        targets.append(point.azimuth_rad / DEG)
+        shots.append(point.shot)
+    return np.array(times), np.array(targets), shots
+
+
+def test_deadband_keeps_the_shot_still_for_a_still_talker():
+    t, target, shots = run(np.full(100, 20.0))
+    settled = target[t >= 1.0]
+    assert np.all(np.abs(settled - 20.0) < 3.0)
+    assert np.ptp(settled) < 2.0  # at most one small correction, no jitter
+    assert shots[-1] == "talker"
+
+
+def test_small_head_movements_do_not_move_the_camera():
+    sway = 20.0 + 1.5 * np.sin(np.arange(100) * HOP_S * 2 * np.pi / 3.0)  # ±1.5° at 0.33 Hz
+    t, target, _ = run(sway, noise_deg=0.5)
+    assert np.ptp(target[t >= 1.0]) < 1.0
+
+
+def test_isolated_outliers_are_ignored():
+    truth = np.full(100, -10.0)
+    truth[[20, 45, 46, 70]] = [60.0, -80.0, 100.0, 35.0]  # reflections, a cough that passed VAD
+    t, target, _ = run(truth)
+    assert np.all(np.abs(target[t >= 1.0] + 10.0) < 4.0)
+
+
+@pytest.mark.parametrize("reaction_time_s", [0.3, 0.8])
+def test_reaction_time_before_moving_to_a_new_talker(reaction_time_s):
+    settings = TrackerSettings(reaction_time_s=reaction_time_s)
+    truth = np.concatenate([np.full(50, 30.0), np.full(50, -40.0)])  # change at t = 5.0 s
+    t, target, _ = run(truth, settings=settings)
+    moved = t[np.abs(target + 40.0) < 5.0]
+    assert moved.size > 0
+    first = moved[0] - 5.0
+    assert reaction_time_s - 1e-9 <= first <= reaction_time_s + 0.25
+
+
+def test_minimum_hold_after_a_switch():
+    settings = TrackerSettings(min_hold_s=3.0, reaction_time_s=0.3)
+    # A for 3 s, B for 1 s, then A again: the camera must stay on B at least 3 s after the switch.
+    truth = np.concatenate([np.full(30, 0.0), np.full(10, 50.0), np.full(60, 0.0)])
+    t, target, _ = run(truth, settings=settings)
+    on_b = t[np.abs(target - 50.0) < 5.0]
+    assert on_b.size > 0
+    switch_t = on_b[0]
+    assert np.all(np.abs(target[(t >= switch_t) & (t < switch_t + 3.0)] - 50.0) < 5.0)
+    assert np.abs(target[-1]) < 5.0  # and then it goes back to A
+
+
+def test_short_pause_keeps_the_talker_and_long_silence_opens_the_floor():
+    settings = TrackerSettings(min_hold_s=5.0, pause_tolerance_s=1.5, reaction_time_s=0.3)
+    truth = np.concatenate([np.full(30, 10.0), np.full(10, 10.0), np.full(20, 10.0),
+                            np.full(25, 10.0), np.full(15, -45.0)])
+    speech = np.concatenate([np.ones(30), np.zeros(10), np.ones(20), np.zeros(25), np.ones(15)])
+    t, target, _ = run(truth, speech=speech.astype(bool), settings=settings)
+    # The 1 s pause changes nothing.
+    assert np.all(np.abs(target[(t >= 1.0) & (t < 6.0)] - 10.0) < 3.0)
+    # After a 2.5 s silence the next talker is taken within the reaction time, inside min_hold.
+    after = t >= 8.5
+    assert np.abs(target[after][-1] + 45.0) < 5.0
+    assert t[after][np.abs(target[after] + 45.0) < 5.0][0] <= 8.5 + 0.6
+
+
+def test_wide_shot_after_repeated_back_and_forth():
+    settings = TrackerSettings(min_hold_s=1.0, wide_after_switches=4, wide_window_s=20.0,
+                               wide_release_s=6.0)
+    turns = [(40.0, 25), (-20.0, 25)] * 4  # 2.5 s each, 8 turns
+    truth = np.concatenate([np.full(n, az) for az, n in turns] + [np.full(100, 40.0)])
+    t, target, shots = run(truth, settings=settings)
+    assert "wide" in shots
+    wide_t = t[np.array(shots) == "wide"]
+    assert np.all(np.abs(target[np.array(shots) == "wide"] - 10.0) < 3.0)  # between the two
+    # One talker holding the floor for wide_release_s brings back the close shot.
+    assert shots[-1] == "talker" and abs(target[-1] - 40.0) < 4.0
+    assert wide_t[-1] < t[-1] - 1.0
+
+
+def test_no_wide_shot_for_a_round_of_three_talkers():
+    turns = [(40.0, 30), (-20.0, 30), (0.0, 30)] * 3
+    truth = np.concatenate([np.full(n, az) for az, n in turns])
+    _, _, shots = run(truth)
+    assert "wide" not in shots
+
+
+def test_walking_talker_is_followed_within_five_degrees():
+    azimuth = -30.0 + 12.0 * np.clip(np.arange(120) * HOP_S - 2.0, 0.0, 6.0)  # 12°/s for 6 s
+    t, target, _ = run(azimuth)
+    assert np.all(np.abs(target[t >= 1.0] - azimuth[t >= 1.0]) < 5.0)
+
+
+def test_settings_are_validated():
+    with pytest.raises(ConfigError, match="min_hold_s"):
+        TrackerSettings(min_hold_s=-1.0)
+    with pytest.raises(ConfigError, match="deadband"):
+        TrackerSettings(deadband_rad=1.0)
