@@ -1,0 +1,112 @@
+"""``tracker audio locate``: the JSON contract, the readable summary and one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tracker.audio import room
+from tracker.audio.sources import write_wav
+from tracker.audio.speech import synthetic_speech
+from tracker.cli import main
+
+from .conftest import ARRAYS_DIR, FS_HZ, example_array
+
+SQUARE = str(ARRAYS_DIR / "square4_65mm.json")
+
+
+@pytest.fixture(scope="module")
+def recording_wav(tmp_path_factory):
+    """3 s of a talker at 35° in a 0.3 s RT60 room, 20 dB SNR, as a 4-channel 16-bit WAV."""
+    array = example_array("square4_65mm")
+    settings = room.RoomSettings(rt60_s=0.3, snr_db=20.0)
+    placement = room.centre_placement(settings)
+    speech = synthetic_speech(3.0, FS_HZ, seed=21)
+    position = room.position_from_direction(placement, np.deg2rad(35.0), 1.5)
+    recording = room.simulate(settings, array, placement,
+                              [room.static_talker(speech.samples, speech.active, position)])
+    path = tmp_path_factory.mktemp("audio") / "talker35.wav"
+    write_wav(path, FS_HZ, recording.audio)
+    return str(path)
+
+
+def test_locate_json_contract(recording_wav, capsys):
+    assert main(["audio", "locate", recording_wav, "--array", SQUARE, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data) == {"fs", "frames", "track"}
+    assert data["fs"] == FS_HZ and isinstance(data["fs"], int)
+    assert len(data["frames"]) == len(data["track"]) > 10
+    for frame in data["frames"]:
+        assert set(frame) == {"t", "azimuth_deg", "elevation_deg", "confidence", "speech"}
+        assert isinstance(frame["t"], float) and isinstance(frame["azimuth_deg"], float)
+        assert frame["elevation_deg"] is None  # flat array
+        assert isinstance(frame["speech"], bool) and 0.0 <= frame["confidence"] <= 1.0
+    for point in data["track"]:
+        assert set(point) == {"t", "azimuth_deg", "elevation_deg"}
+    speech_az = [f["azimuth_deg"] for f in data["frames"] if f["speech"]]
+    assert len(speech_az) > 10
+    assert abs(np.median(speech_az) - 35.0) < 4.0
+    assert abs(data["track"][-1]["azimuth_deg"] - 35.0) < 5.0
+
+
+@pytest.mark.parametrize("method", ["seed_rms", "gcc_phat", "srp_dpd"])
+def test_every_method_runs_from_the_command_line(recording_wav, capsys, method):
+    assert main(["audio", "locate", recording_wav, "--array", SQUARE, "--method", method,
+                 "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["frames"]
+
+
+def test_readable_summary(recording_wav, capsys):
+    assert main(["audio", "locate", recording_wav, "--array", SQUARE]) == 0
+    out = capsys.readouterr().out
+    assert "srp_phat" in out and "camera ->" in out
+
+
+def _error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("error: ")
+    return lines[0]
+
+
+def test_wrong_channel_count(tmp_path, recording_wav, capsys):
+    six = str(ARRAYS_DIR / "circular6_46mm.json")
+    assert main(["audio", "locate", recording_wav, "--array", six]) == 2
+    line = _error_line(capsys)
+    assert "4 channel(s)" in line and "6 mics" in line
+
+
+def test_unreadable_wav(tmp_path, capsys):
+    bad = tmp_path / "notes.wav"
+    bad.write_text("this is not audio")
+    assert main(["audio", "locate", str(bad), "--array", SQUARE]) == 2
+    assert "not a readable WAV file" in _error_line(capsys)
+
+
+def test_missing_wav(tmp_path, capsys):
+    assert main(["audio", "locate", str(tmp_path / "nope.wav"), "--array", SQUARE]) == 2
+    assert "file not found" in _error_line(capsys)
+
+
+def test_silent_wav(tmp_path, capsys):
+    path = tmp_path / "silence.wav"
+    write_wav(path, FS_HZ, np.zeros((4, FS_HZ * 2)))
+    assert main(["audio", "locate", str(path), "--array", SQUARE]) == 2
+    assert "silent" in _error_line(capsys)
+
+
+def test_too_short_wav(tmp_path, capsys):
+    path = tmp_path / "short.wav"
+    write_wav(path, FS_HZ, 0.1 * np.ones((4, 100)))
+    assert main(["audio", "locate", str(path), "--array", SQUARE]) == 2
+    assert "shorter than one" in _error_line(capsys)
+
+
+def test_bad_array_file(tmp_path, recording_wav, capsys):
+    path = tmp_path / "array.json"
+    path.write_text(json.dumps({"mics": [[0, 0, 0]]}))
+    assert main(["audio", "locate", recording_wav, "--array", str(path)]) == 2
+    assert "at least 2 microphones" in _error_line(capsys)
