@@ -1,0 +1,173 @@
+"""Starting values for the fitter: searches for discrete and nonlinear parameters, then linear LS.
+
+Gradient methods need a start near the answer and cannot move a discrete parameter at all.
+Here each nonlinear parameter gets a search of its own, on the cheapest criterion that sees it:
+
+* ``ripple.cycles_per_rev``: the residual torque's spectrum over θ (a Fourier projection on
+  sin nθ, cos nθ for every whole n the data can resolve); the strongest line wins.
+* ``delay.seconds``, ``saturation.limit``, ``stiction.velocity``: a grid on the inverse-dynamics
+  error (each point a linear least squares over the linear parameters).
+* ``backlash.width``, ``compliance.frequency``: a grid on the k-step prediction error (they act
+  through a hidden state, so only a simulation sees them).
+
+Then the linear parameters come from inverse dynamics, and the start is whichever of that and
+the model's own values predicts better.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.errors import ConfigError
+from tracker.plant.effects import get_param
+from tracker.plant.model import AxisModel
+from tracker.plant.simulate import predict_windows
+from tracker.workbench.data import Measurement
+from tracker.workbench.states import StateEstimate, encoder_step_rad, with_load_observer
+from tracker.workbench.torques import fit_inverse_dynamics, moving_mask, residual_torque_nm
+
+FloatArray = NDArray[np.float64]
+
+MAX_RIPPLE_SAMPLES = 8000
+DELAY_GRID_S = (0.0, 0.002, 0.005, 0.01, 0.015, 0.02, 0.03, 0.045, 0.065, 0.09, 0.12, 0.16)
+STRIBECK_GRID = (0.02, 0.05, 0.1, 0.2, 0.4)  # × the 95th-percentile speed
+SATURATION_GRID = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)  # × max |u|
+BACKLASH_GRID_COUNTS = (2.0, 5.0, 12.0, 30.0, 80.0, 200.0)  # × the encoder count (or noise)
+COMPLIANCE_GRID_HZ = (3.0, 6.0, 12.0, 25.0, 50.0, 100.0, 200.0)
+
+
+@dataclass(frozen=True, slots=True)
+class StartValues:
+    """The fitter's starting model and the inverse-dynamics relative error (%) behind it."""
+
+    model: AxisModel
+    id_error_percent: float
+
+
+def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int) -> float:
+    """Mean squared k-step window prediction error (rad²) of ``model``."""
+    starts = np.arange(0, meas.n - k - 1, k, dtype=np.int64)
+    e = with_load_observer(est, model, meas.dt_s)
+    pred = predict_windows(model, meas.u_v, meas.dt_s, starts, k + 1, e.initial_states(starts))[:, 1:]
+    y = meas.theta_rad[starts[:, None] + np.arange(1, k + 1)[None, :]]
+    return float(np.mean((y - pred) ** 2))
+
+
+def ripple_spectrum(theta_rad: FloatArray, torque_nm: FloatArray, n_max: int = 500) -> tuple[NDArray[np.int64], FloatArray]:
+    """Amplitude (N·m) of the torque's sin/cos nθ component for each resolvable whole n.
+
+    Returns (cycles, amplitude), shape (m,) each. n must fit two periods in the θ range seen and
+    be resolved by the sample spacing in θ.
+    """
+    th = np.asarray(theta_rad, dtype=float)
+    tq = np.asarray(torque_nm, dtype=float) - float(np.mean(torque_nm))
+    span = float(th.max() - th.min())
+    if th.size < 50 or span <= 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    n_lo = max(1, int(math.ceil(4.0 * math.pi / span)))
+    step = float(np.percentile(np.abs(np.diff(th)), 95)) or span
+    n_hi = int(min(n_max, math.pi / (2.0 * step)))
+    if n_hi < n_lo:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    if th.size > MAX_RIPPLE_SAMPLES:
+        pick = np.linspace(0, th.size - 1, MAX_RIPPLE_SAMPLES).astype(np.int64)
+        th, tq = th[pick], tq[pick]
+    ns = np.arange(n_lo, n_hi + 1, dtype=np.int64)
+    amps = np.empty(ns.size)
+    for i, n in enumerate(ns):
+        a = np.column_stack([np.sin(n * th), np.cos(n * th)])
+        coef, *_ = np.linalg.lstsq(a, tq, rcond=None)
+        amps[i] = math.hypot(coef[0], coef[1])
+    return ns, amps
+
+
+def find_ripple_cycles(meas: Measurement, est: StateEstimate, model: AxisModel) -> float:
+    """Whole cycles per revolution of the strongest θ-periodic residual torque (the model's
+    value when the data cannot resolve any)."""
+    base = model.without_effect("ripple")
+    free = [k for k in base.free_param_names() if k.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")]
+    fitted = base.with_params(fit_inverse_dynamics(meas, est, base, free).params)
+    mov = moving_mask(est.omega_rad_s)
+    tq = residual_torque_nm(meas, est, fitted)[mov]
+    ns, amps = ripple_spectrum(est.theta_rad[mov], tq)
+    if ns.size == 0:
+        return float(model.params["ripple.cycles_per_rev"])
+    return float(ns[int(np.argmax(amps))])
+
+
+def _id_error(meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str]) -> float:
+    return fit_inverse_dynamics(meas, est, model, free).relative_error_percent
+
+
+def _grid_on_id(meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], free: Sequence[str]) -> AxisModel:
+    prm = get_param(name)
+    best, best_err = model, math.inf
+    for v in grid:
+        v = min(max(v, prm.lower), prm.upper)
+        cand = model.with_params({name: v})
+        err = _id_error(meas, est, cand, free)
+        if err < best_err:
+            best, best_err = cand, err
+    return best
+
+
+def _grid_on_prediction(meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], k: int) -> AxisModel:
+    prm = get_param(name)
+    best, best_cost = model, window_cost(meas, est, model, k)
+    for v in grid:
+        v = min(max(v, prm.lower), prm.upper)
+        cand = model.with_params({name: v})
+        cost = window_cost(meas, est, cand, k)
+        if cost < best_cost:
+            best, best_cost = cand, cost
+    return best
+
+
+def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str], k: int) -> StartValues:
+    """Starting values for the fit of ``free`` (full names) at horizon ``k`` samples."""
+    m = model
+    if m.has("quantization"):
+        q = encoder_step_rad(meas.theta_rad)
+        if 0.0 < q <= get_param("quantization.step").upper:
+            m = m.with_params({"quantization.step": q})
+    linear_free = [n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")]
+    linear_free = [n for n in linear_free if n not in ("stiction.velocity", "gravity.phase", "ripple.phase")]
+    if m.has("ripple") and "ripple.amplitude" in free:
+        m = m.with_params({"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
+    w95 = float(np.percentile(np.abs(est.omega_rad_s), 95)) or 1.0
+    umax = float(np.max(np.abs(meas.u_v)))
+    try:
+        if "delay.seconds" in free:
+            m = _grid_on_id(meas, est, m, "delay.seconds", DELAY_GRID_S, linear_free)
+        if "saturation.limit" in free and umax > 0:
+            m = _grid_on_id(meas, est, m, "saturation.limit", [f * umax for f in SATURATION_GRID], linear_free)
+        if "stiction.velocity" in free:
+            m = _grid_on_id(meas, est, m, "stiction.velocity", [f * w95 for f in STRIBECK_GRID], linear_free)
+        idf = fit_inverse_dynamics(meas, est, m, linear_free)
+    except ConfigError:
+        idf = None
+    m_id = m.with_params({k_: v for k_, v in idf.params.items() if k_ in linear_free}) if idf else m
+    if "stiction.static_torque" in free and m_id.has("stiction"):
+        # Break-away torque must be at least Coulomb to mean anything (inverse dynamics hardly sees it).
+        fc = m_id.params["coulomb.torque"]
+        if m_id.params["stiction.static_torque"] < 1.05 * fc:
+            m_id = m_id.with_params({"stiction.static_torque": 1.3 * fc})
+    unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
+    if "backlash.width" in free:
+        m_id = _grid_on_prediction(meas, est, m_id, "backlash.width", [c * unit for c in BACKLASH_GRID_COUNTS], k)
+    if "compliance.frequency" in free:
+        nyq = 0.5 / meas.dt_s
+        m_id = _grid_on_prediction(meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k)
+    # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
+    own = m.with_params({n: m_id.params[n] for n in m_id.params if n.split(".")[0] in ("delay", "saturation", "backlash", "compliance", "ripple", "quantization") or n == "stiction.velocity"})
+    if window_cost(meas, est, own, k) < window_cost(meas, est, m_id, k):
+        m_id = own
+    return StartValues(m_id, idf.relative_error_percent if idf else math.nan)
+
+
+__all__ = ["StartValues", "find_ripple_cycles", "ripple_spectrum", "search_start", "window_cost"]
