@@ -1,0 +1,81 @@
+"""``tracker simulate``: the scripted pointing test on the twin (default) or the meeting scenario."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from typing import Any
+
+from tracker.control.design import CONTROLLERS, DEFAULT_CONTROLLER
+from tracker.errors import ConfigError
+
+
+def register(subparsers: Any) -> None:
+    """Add ``simulate`` to the ``tracker`` command."""
+    p = subparsers.add_parser(
+        "simulate",
+        help="run the pointing test (steps, ramps, 1 Hz sine) on the digital twin, or a meeting",
+        description="Scripted pointing test on the twin: per-axis margins, step and sine figures.",
+    )
+    p.add_argument("scenario", nargs="?", default="pointing", choices=("pointing", "meeting"))
+    p.add_argument("--axis", choices=("pan", "tilt"), help="one axis only (default: both)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="simulated seconds (pointing: the 20 s script repeats; meeting: default 60)")
+    p.add_argument("--effects", default="", metavar="A,B", help="hidden effects added to the twin (catalogue defaults)")
+    p.add_argument("--rig-config", default=None, metavar="FILE.json", help="hidden effects per axis (rig config file)")
+    p.add_argument("--controller", default=DEFAULT_CONTROLLER, choices=sorted(CONTROLLERS))
+    p.add_argument("--record", default=None, metavar="FILE.csv", help="write the run as a t,u,theta log (one per axis)")
+    p.add_argument("--seed", type=int, default=0, help="meeting: random seed")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the chosen scenario; print figures."""
+    if args.scenario == "meeting":
+        return _run_meeting(args)
+    from tracker.control.pointing import SCRIPT_S
+    from tracker.control.scorecard import run_pointing, twin_for
+    from tracker.drivers.sim import load_rig_config
+    from tracker.recording import write_measurements
+
+    effects = [e.strip() for e in args.effects.split(",") if e.strip()]
+    rig = load_rig_config(args.rig_config) if args.rig_config else None
+    axes = [args.axis] if args.axis else ["pan", "tilt"]
+    duration = SCRIPT_S if args.duration is None else args.duration
+    out: dict[str, Any] = {}
+    logs = {}
+    for axis in axes:
+        res = run_pointing(axis, duration, args.controller, twin_for(axis, effects, rig), record=bool(args.record))
+        out[axis] = res.figures
+        if res.measurement is not None:
+            logs[axis] = res.measurement
+    if args.record:
+        for path in write_measurements(logs, args.record):
+            print(f"recorded {path}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        for axis, fig in out.items():
+            print(f"{axis}:")
+            for k, v in fig.items():
+                print(f"  {k:40s} {v}")
+    return 0
+
+
+def _run_meeting(args: argparse.Namespace) -> int:
+    try:
+        meeting = importlib.import_module("tracker.scenarios.meeting")
+    except ModuleNotFoundError as exc:
+        raise ConfigError(f"the meeting scenario is not available ({exc.name} is missing)") from None
+    duration = 60.0 if args.duration is None else args.duration
+    result = meeting.run_meeting(seed=args.seed, duration_s=duration)
+    figures = result.to_dict() if hasattr(result, "to_dict") else result
+    if args.json:
+        print(json.dumps(figures, indent=2))
+    else:
+        for k, v in figures.items():
+            print(f"{k:32s} {v}")
+    return 0

@@ -1,0 +1,122 @@
+"""Soft limits (pan ±90°, tilt ±45°) that no target, gain or command can pass.
+
+Two lines of defence:
+
+1. :func:`clamp_target` keeps every target inside the limits less ``target_margin_rad``
+   (the shaper in :mod:`tracker.control.trajectory` also brakes in time for them);
+2. :func:`guard_command`, the last line, runs after any controller: it predicts where the axis
+   would stop if it braked now, from the *observed* velocity, the command latency and the
+   deceleration the motor can surely deliver, and overrides the command with a full brake when
+   that stop point reaches the guard line; at the line it forbids any outward command.
+
+The guard assumes that unmodelled torques (gravity, offset, ripple...) and a lower amplifier
+clip leave at least ``BRAKE_FRACTION`` of the nominal braking torque; a rig that breaks that
+assumption is outside what any controller can stop.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from numba import njit
+
+from tracker.errors import ConfigError
+from tracker.plant.params import get_preset
+
+# Fraction of the nominal 10 V torque (less Coulomb friction's help) counted on for braking.
+BRAKE_FRACTION = 0.5
+TARGET_MARGIN_RAD = math.radians(0.5)
+GUARD_MARGIN_RAD = math.radians(0.25)
+# Latency between deciding to brake and the torque acting: one sample plus slack for delay.
+GUARD_LATENCY_S = 0.004
+
+
+@dataclass(frozen=True, slots=True)
+class SoftLimits:
+    """Soft limits of one axis (rad) and the guard's margins."""
+
+    lower_rad: float
+    upper_rad: float
+    target_margin_rad: float = TARGET_MARGIN_RAD
+    guard_margin_rad: float = GUARD_MARGIN_RAD
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lower_rad) and math.isfinite(self.upper_rad)):
+            raise ConfigError(f"soft limits must be finite, got [{self.lower_rad!r}, {self.upper_rad!r}]")
+        if self.upper_rad - self.lower_rad <= 2.0 * self.target_margin_rad:
+            raise ConfigError(
+                f"soft limits [{self.lower_rad:g}, {self.upper_rad:g}] rad leave no room inside the "
+                f"{self.target_margin_rad:g} rad margin"
+            )
+
+    @classmethod
+    def for_axis(cls, axis: str) -> SoftLimits:
+        """The seed's limits: pan ±90°, tilt ±45° (Table 1.1)."""
+        lim = get_preset(axis).soft_limit_rad
+        return cls(-lim, lim)
+
+    def check_target(self, axis: str, angle_rad: float) -> float:
+        """Return ``angle_rad`` or raise ConfigError naming the limit it breaks."""
+        if not math.isfinite(angle_rad):
+            raise ConfigError(f"{axis} target {angle_rad!r} is not a finite angle")
+        if angle_rad < self.lower_rad or angle_rad > self.upper_rad:
+            raise ConfigError(
+                f"{axis} target {math.degrees(angle_rad):.2f}° is outside the soft limit "
+                f"[{math.degrees(self.lower_rad):.1f}°, {math.degrees(self.upper_rad):.1f}°]"
+            )
+        return angle_rad
+
+
+def brake_decel_rad_s2(gain_nm_per_v: float, inertia_kg_m2: float, u_max_v: float = 10.0) -> float:
+    """The deceleration (rad/s²) the guard counts on: BRAKE_FRACTION of K·u_max/J."""
+    return BRAKE_FRACTION * gain_nm_per_v * u_max_v / inertia_kg_m2
+
+
+@njit(cache=True, inline="always")
+def clamp_target(target_rad: float, lo_rad: float, hi_rad: float, margin_rad: float) -> float:
+    """The target clamped into [lo + margin, hi − margin]; NaN becomes the centre."""
+    a = lo_rad + margin_rad
+    b = hi_rad - margin_rad
+    if target_rad != target_rad:
+        return 0.5 * (a + b)
+    if target_rad < a:
+        return a
+    if target_rad > b:
+        return b
+    return target_rad
+
+
+@njit(cache=True)
+def guard_command(
+    u_v: float,
+    theta_rad: float,
+    omega_rad_s: float,
+    lo_rad: float,
+    hi_rad: float,
+    guard_margin_rad: float,
+    decel_rad_s2: float,
+    latency_s: float,
+    u_max_v: float,
+) -> float:
+    """The last line: ``u_v`` unless the axis would run past a soft limit; then a brake.
+
+    ``theta_rad``/``omega_rad_s`` are the observed angle and velocity. Returns volts.
+    """
+    if u_v != u_v:  # NaN from absurd gains: stop pushing
+        u_v = 0.0
+    hi = hi_rad - guard_margin_rad
+    lo = lo_rad + guard_margin_rad
+    if omega_rad_s > 0.0:
+        stop = theta_rad + omega_rad_s * latency_s + omega_rad_s * omega_rad_s / (2.0 * decel_rad_s2)
+        if stop >= hi:
+            return -u_max_v
+    elif omega_rad_s < 0.0:
+        stop = theta_rad + omega_rad_s * latency_s - omega_rad_s * omega_rad_s / (2.0 * decel_rad_s2)
+        if stop <= lo:
+            return u_max_v
+    if theta_rad >= hi and u_v > 0.0:
+        return 0.0
+    if theta_rad <= lo and u_v < 0.0:
+        return 0.0
+    return u_v

@@ -1,0 +1,195 @@
+"""The discrete controller of one axis, compiled: observer, shaping, 2-DOF law, anti-windup, guard.
+
+Every sample k (Ts = 1 ms) :func:`controller_step` takes the encoder angle yₖ and the target
+and returns the command uₖ (V), held over [tₖ, tₖ₊₁):
+
+1. clamp the target into the soft limits and shape it (rate/acceleration limits) into a
+   reference r, r', r'' (:mod:`tracker.control.trajectory`);
+2. correct the observer with yₖ (:mod:`tracker.control.observer`): θ̂, ω̂;
+3. law "observer_pd_ff": u = (J r'' + b r' + Fc·s)/K + Kp (r − θ̂) + Kd (r' − ω̂) + Ki ∫(r − θ̂),
+   with s = tanh(v/v_band) the smoothed friction sign, v = r' while the reference moves and the
+   *observed* velocity ω̂ otherwise; the integrator stops while the command is saturated and its
+   share is capped (anti-windup);
+   law "seed_lead": u = C(z)(r − y), the seed's first-order lead on the raw encoder error;
+4. the soft-limit guard (:mod:`tracker.control.limits`), then the ±10 V clip;
+5. the observer predicts the next sample with the applied command.
+
+Parameters travel as one packed float vector (``CP``), state as another (``CS``), so the whole
+loop compiles with numba next to the plant (:mod:`tracker.control.closed_loop`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
+from tracker.control.limits import (
+    GUARD_LATENCY_S,
+    SoftLimits,
+    brake_decel_rad_s2,
+    clamp_target,
+    guard_command,
+)
+from tracker.control.observer import design_observer
+from tracker.control.trajectory import TrajectoryLimits, shape_step
+from tracker.plant.model import AxisModel
+from tracker.units import AMPLIFIER_LIMIT_V
+
+FloatArray = NDArray[np.float64]
+
+KIND_LEAD, KIND_PD = 0.0, 1.0
+# Packed controller parameters (literal indices keep numba's cache honest).
+C_KIND, C_DT, C_LG, C_LZ, C_LP = 0, 1, 2, 3, 4
+C_KP, C_KD, C_KI, C_ILIM, C_FJ, C_FB, C_FCP, C_FCN, C_BAND, C_FSCALE, C_VSRC = 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15
+C_A, C_B, C_L = 16, 25, 28  # observer A (3x3 row-major), B (3), L (3)
+C_VMAX, C_AMAX, C_SHAPE = 31, 32, 33
+C_LO, C_HI, C_TMARG, C_GMARG, C_DECEL, C_LAT, C_UMAX, C_FF = 34, 35, 36, 37, 38, 39, 40, 41
+N_CP = 42
+# Controller state.
+S_X, S_INT, S_PREVY, S_LE, S_LU, S_REF, S_PREVT, S_INIT, S_TH, S_OM, S_GUARD, S_U = 0, 3, 4, 5, 6, 7, 10, 11, 12, 13, 14, 15
+N_CS = 16
+
+VELOCITY_OBSERVER, VELOCITY_DIFFERENCE = 0.0, 1.0
+
+
+def pack_controller(
+    model: AxisModel,
+    gains: ControllerGains,
+    dt_s: float,
+    limits: SoftLimits,
+    shaping: TrajectoryLimits | None,
+    velocity_source: float = VELOCITY_OBSERVER,
+) -> FloatArray:
+    """Pack ``gains`` designed on ``model`` into the compiled controller's vector, shape (N_CP,).
+
+    ``shaping=None`` passes targets unshaped (the seed's structure).
+    """
+    p = model.params
+    k = model.gain_nm_per_v
+    cp = np.zeros(N_CP)
+    cp[C_DT] = dt_s
+    if isinstance(gains, LeadGains):
+        cp[C_KIND] = KIND_LEAD
+        cp[C_LG], cp[C_LZ], cp[C_LP] = gains.gain_v_per_rad, gains.zero, gains.pole
+        obs_bw = 30.0  # the guard still needs an observed velocity
+    else:
+        assert isinstance(gains, ObserverPdGains)
+        cp[C_KIND] = KIND_PD
+        cp[C_KP], cp[C_KD], cp[C_KI] = gains.kp_v_per_rad, gains.kd_v_s_per_rad, gains.ki_v_per_rad_s
+        cp[C_ILIM] = gains.integral_limit_v
+        cp[C_FF] = gains.feedforward
+        cp[C_FJ] = p["inertia.J"] / k
+        cp[C_FB] = p["viscous.b"] / k
+        cp[C_FCP] = p["coulomb.torque"] / k
+        cp[C_FCN] = p.get("coulomb_asymmetry.negative", p["coulomb.torque"]) / k
+        cp[C_BAND] = gains.friction_band_rad_s
+        cp[C_FSCALE] = gains.friction_comp
+        obs_bw = gains.observer_bandwidth_hz
+    cp[C_VSRC] = velocity_source
+    obs = design_observer(model, obs_bw, dt_s)
+    cp[C_A : C_A + 9] = obs.a.reshape(-1)
+    cp[C_B : C_B + 3] = obs.b
+    cp[C_L : C_L + 3] = obs.l
+    if shaping is not None:
+        cp[C_VMAX], cp[C_AMAX], cp[C_SHAPE] = shaping.rate_rad_s, shaping.accel_rad_s2, 1.0
+    else:
+        cp[C_VMAX], cp[C_AMAX] = 1e9, 1e12
+    cp[C_LO], cp[C_HI] = limits.lower_rad, limits.upper_rad
+    cp[C_TMARG], cp[C_GMARG] = limits.target_margin_rad, limits.guard_margin_rad
+    cp[C_DECEL] = brake_decel_rad_s2(k, p["inertia.J"], AMPLIFIER_LIMIT_V)
+    cp[C_LAT] = GUARD_LATENCY_S + p.get("delay.seconds", 0.0)
+    cp[C_UMAX] = AMPLIFIER_LIMIT_V
+    return cp
+
+
+def new_state() -> FloatArray:
+    """A fresh controller state (it initialises itself on the first sample). Shape (N_CS,)."""
+    return np.zeros(N_CS)
+
+
+@njit(cache=True, inline="always")
+def _clip(x: float, lim: float) -> float:
+    if x > lim:
+        return lim
+    if x < -lim:
+        return -lim
+    return x
+
+
+@njit(cache=True)
+def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: float) -> float:
+    """One sample of the controller: encoder ``y_rad`` and ``target_rad`` in, command (V) out."""
+    dt = cp[C_DT]
+    umax = cp[C_UMAX]
+    if cs[S_INIT] == 0.0:
+        cs[S_X] = y_rad
+        cs[S_X + 1] = 0.0
+        cs[S_X + 2] = 0.0
+        cs[S_REF] = y_rad
+        cs[S_REF + 1] = 0.0
+        cs[S_REF + 2] = 0.0
+        cs[S_PREVT] = clamp_target(target_rad, cp[C_LO], cp[C_HI], cp[C_TMARG])
+        cs[S_PREVY] = y_rad
+        cs[S_INIT] = 1.0
+    # 1. target → shaped reference.
+    r = clamp_target(target_rad, cp[C_LO], cp[C_HI], cp[C_TMARG])
+    vt = (r - cs[S_PREVT]) / dt
+    cs[S_PREVT] = r
+    if abs(vt) > cp[C_VMAX]:
+        vt = 0.0  # a jump, not a motion: shape it as a step
+    if cp[C_SHAPE] > 0.0:
+        shape_step(cs[S_REF : S_REF + 3], r, vt, cp[C_VMAX], cp[C_AMAX], dt, cp[C_LO], cp[C_HI])
+    else:
+        cs[S_REF] = r
+        cs[S_REF + 2] = (vt - cs[S_REF + 1]) / dt
+        cs[S_REF + 1] = vt
+    ref_p = cs[S_REF]
+    ref_v = cs[S_REF + 1]
+    ref_a = cs[S_REF + 2]
+    # 2. observer correction (current form).
+    innov = y_rad - cs[S_X]
+    th = cs[S_X] + cp[C_L] * innov
+    om = cs[S_X + 1] + cp[C_L + 1] * innov
+    dist = cs[S_X + 2] + cp[C_L + 2] * innov
+    # 3. control law.
+    if cp[C_KIND] == KIND_LEAD:
+        e = ref_p - y_rad
+        u = cp[C_LG] * e - cp[C_LG] * cp[C_LZ] * cs[S_LE] + cp[C_LP] * cs[S_LU]
+        cs[S_LE] = e
+        cs[S_LU] = u
+    else:
+        om_fb = om
+        if cp[C_VSRC] == VELOCITY_DIFFERENCE:
+            om_fb = (y_rad - cs[S_PREVY]) / dt
+        e = ref_p - th
+        v_fric = ref_v if abs(ref_v) > cp[C_BAND] else om_fb
+        s = math.tanh(v_fric / cp[C_BAND])
+        fc = cp[C_FCP] if s > 0.0 else cp[C_FCN]
+        u_ff = cp[C_FF] * (cp[C_FJ] * ref_a + cp[C_FB] * ref_v) + cp[C_FSCALE] * fc * s
+        u_i = cp[C_KI] * cs[S_INT]
+        u = u_ff + cp[C_KP] * e + cp[C_KD] * (ref_v - om_fb) + u_i
+        # Anti-windup: integrate only while the command is not pushed further into saturation.
+        if not ((u > umax and e > 0.0) or (u < -umax and e < 0.0)):
+            cs[S_INT] += e * dt
+            if cp[C_KI] > 0.0:
+                cap = cp[C_ILIM] / cp[C_KI]
+                cs[S_INT] = _clip(cs[S_INT], cap)
+    cs[S_PREVY] = y_rad
+    # 4. the last line, then the amplifier's range.
+    ug = guard_command(u, th, om, cp[C_LO], cp[C_HI], cp[C_GMARG], cp[C_DECEL], cp[C_LAT], umax)
+    cs[S_GUARD] = 1.0 if ug != u else 0.0
+    u = _clip(ug, umax)
+    # 5. observer prediction with the applied command.
+    a = cp[C_A : C_A + 9]
+    b = cp[C_B : C_B + 3]
+    cs[S_X] = a[0] * th + a[1] * om + a[2] * dist + b[0] * u
+    cs[S_X + 1] = a[3] * th + a[4] * om + a[5] * dist + b[1] * u
+    cs[S_X + 2] = a[6] * th + a[7] * om + a[8] * dist + b[2] * u
+    cs[S_TH] = th
+    cs[S_OM] = om
+    cs[S_U] = u
+    return u

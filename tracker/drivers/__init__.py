@@ -1,0 +1,1 @@
+"""Hardware behind small Protocols: the motor driver and its simulated rig."""

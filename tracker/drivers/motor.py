@@ -1,0 +1,77 @@
+"""The motor driver interface of the pan/tilt rig: enable, command volts, read encoders, faults.
+
+A fault (over-travel, a non-finite command, a device error) *latches*: the driver disables
+itself and refuses to enable again until :meth:`MotorDriver.clear_faults`.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+AXES: tuple[str, ...] = ("pan", "tilt")
+
+
+@runtime_checkable
+class MotorDriver(Protocol):
+    """One amplifier channel and one encoder per axis, sampled every ``sample_period_s``."""
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        """Axis names, e.g. ("pan", "tilt")."""
+        ...
+
+    @property
+    def sample_period_s(self) -> float:
+        """The control sample period (s)."""
+        ...
+
+    @property
+    def enabled(self) -> bool:
+        """True while the amplifiers are enabled."""
+        ...
+
+    def enable(self) -> None:
+        """Enable the amplifiers; raises DriverFault while a fault is latched."""
+        ...
+
+    def disable(self) -> None:
+        """Disable the amplifiers (0 V); always allowed."""
+        ...
+
+    def command(self, axis: str, volts: float) -> None:
+        """Set the amplifier command of ``axis`` (V) for the next sample."""
+        ...
+
+    def read_encoder(self, axis: str) -> float:
+        """The encoder angle of ``axis`` at the load (rad)."""
+        ...
+
+    def tick(self) -> None:
+        """Let one sample period pass (real hardware waits; the simulation integrates)."""
+        ...
+
+    def faults(self) -> tuple[str, ...]:
+        """Latched faults, each a message naming the axis and cause."""
+        ...
+
+    def clear_faults(self) -> None:
+        """Clear latched faults (the driver stays disabled until enabled again)."""
+        ...
+
+
+@runtime_checkable
+class ClosedLoopDriver(MotorDriver, Protocol):
+    """A driver that can run the compiled controller itself for a chunk of samples (the twin)."""
+
+    def run_closed_loop(
+        self, axis: str, cp: NDArray[np.float64], cs: NDArray[np.float64], targets_rad: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """Run ``targets_rad.shape[0]`` samples of the controller ``cp``/``cs`` on ``axis``.
+
+        Returns the per-sample record, shape (n, N_REC) (see tracker.control.closed_loop).
+        All axes must be advanced by the same number of samples before time moves on.
+        """
+        ...

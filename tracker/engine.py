@@ -1,0 +1,393 @@
+"""The engine loop: target source → shaped, guarded controllers of both axes → driver → telemetry.
+
+Both axes run at 1 kHz of simulated (or driver) time in chunks of ``EngineConfig.chunk_s``
+(10 ms): on the twin the whole chunk runs compiled (controller + plant); on another driver
+the compiled controller runs sample by sample through the driver. After each chunk the engine
+publishes one :class:`TelemetrySnapshot` (100 Hz). ``run(realtime=True)`` paces chunks to the
+wall clock (serve); ``realtime=False`` runs as fast as possible (batch, tests).
+
+Modes: "manual" (``point``/``jog`` hold until ``release`` or ``set_tracking(True)``),
+"tracking" (targets from the source), "hold" (no target: keep the last one), "disabled"
+(driver disabled), "fault" (a latched driver fault; the driver disables itself).
+Targets from the source are queried once per chunk and interpolated across it (10 ms latency).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tracker.control.closed_loop import N_REC, R_U, R_Y
+from tracker.control.design import DEFAULT_CONTROLLER, DesignReport, check_gains, design_controller
+from tracker.control.gains import ControllerGains
+from tracker.control.limits import SoftLimits
+from tracker.control.loop import S_OM, S_REF, S_TH, controller_step, new_state, pack_controller
+from tracker.control.trajectory import DEFAULT_LIMITS, TrajectoryLimits
+from tracker.drivers.motor import AXES, ClosedLoopDriver, MotorDriver
+from tracker.errors import ConfigError, DriverFault
+from tracker.plant.model import AxisModel
+from tracker.recording import Recorder
+from tracker.targets import TargetSource, as_target
+from tracker.workbench.data import Measurement
+
+MODES = ("tracking", "manual", "hold", "disabled", "fault")
+
+
+@dataclass(frozen=True, slots=True)
+class TelemetrySnapshot:
+    """One published sample (angles are encoder readings, rad; commands in V)."""
+
+    t_s: float
+    pan_rad: float
+    tilt_rad: float
+    pan_target_rad: float
+    tilt_target_rad: float
+    pan_u_v: float
+    tilt_u_v: float
+    mode: str
+    tracking: bool
+    source: str | None
+    estimate_azimuth_rad: float | None = None
+    estimate_elevation_rad: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class EngineStatus:
+    """The engine's state right now."""
+
+    t_s: float
+    pan_rad: float
+    tilt_rad: float
+    pan_target_rad: float
+    tilt_target_rad: float
+    mode: str
+    tracking: bool
+    faults: tuple[str, ...]
+    active_talker: str | None
+
+
+@dataclass(frozen=True, slots=True)
+class EngineConfig:
+    """Engine settings. ``models`` are the design models (default: the seed presets)."""
+
+    controller: str = DEFAULT_CONTROLLER
+    min_phase_margin_deg: float = 45.0
+    chunk_s: float = 0.01
+    shaping: dict[str, TrajectoryLimits] = field(default_factory=lambda: dict(DEFAULT_LIMITS))
+    models: dict[str, AxisModel] | None = None
+    enable_on_start: bool = True
+
+
+class TelemetrySubscription:
+    """Async iterator of snapshots; a slow consumer loses the oldest ones. ``close()`` to leave."""
+
+    def __init__(self, engine: Engine, maxsize: int) -> None:
+        self._engine = engine
+        self._queue: asyncio.Queue[TelemetrySnapshot | None] = asyncio.Queue(maxsize=max(1, maxsize))
+        self.dropped = 0
+        self.closed = False
+
+    def _put(self, item: TelemetrySnapshot | None) -> None:
+        if self._queue.full():
+            self._queue.get_nowait()
+            self.dropped += 1
+        self._queue.put_nowait(item)
+
+    def __aiter__(self) -> TelemetrySubscription:
+        return self
+
+    async def __anext__(self) -> TelemetrySnapshot:
+        if self.closed and self._queue.empty():
+            raise StopAsyncIteration
+        item = await self._queue.get()
+        if item is None:
+            self.closed = True
+            raise StopAsyncIteration
+        return item
+
+    def close(self) -> None:
+        """Stop receiving; a pending iteration ends."""
+        if not self.closed:
+            self._engine._subscribers.discard(self)
+            self.closed = True
+            self._put(None)
+
+
+class _Axis:
+    """Controller state of one axis."""
+
+    def __init__(self, name: str, model: AxisModel, gains: ControllerGains, shaping: TrajectoryLimits, dt: float) -> None:
+        self.name = name
+        self.model = model
+        self.limits = SoftLimits.for_axis(name)
+        self.shaping = shaping
+        self.dt = dt
+        self.gains = gains
+        self.cp = pack_controller(model, gains, dt, self.limits, shaping)
+        self.cs = new_state()
+        self.target_rad = 0.0
+        self.u_v = 0.0
+        self.y_rad = 0.0
+
+    def set_gains(self, gains: ControllerGains) -> None:
+        self.gains = gains
+        self.cp = pack_controller(self.model, gains, self.dt, self.limits, self.shaping)
+
+
+class Engine:
+    """The tracking engine on a motor driver (see the module docstring)."""
+
+    def __init__(self, driver: MotorDriver, config: EngineConfig | None = None) -> None:
+        self._driver = driver
+        self.config = config or EngineConfig()
+        self._dt = driver.sample_period_s
+        self._n_chunk = max(1, int(round(self.config.chunk_s / self._dt)))
+        models = self.config.models or {a: AxisModel.for_axis(a) for a in AXES}
+        self._axes: dict[str, _Axis] = {}
+        for a in AXES:
+            design = design_controller(models[a], self.config.controller, axis=a)
+            self._axes[a] = _Axis(a, models[a], design.gains, self.config.shaping[a], self._dt)
+        self._t = 0.0
+        self._k = 0  # samples run; time is k·dt (no drift)
+        self._tracking = False
+        self._manual = False
+        self._source: TargetSource | None = None
+        self._last_target: dict[str, float] = {a: 0.0 for a in AXES}
+        self._estimate: tuple[float | None, float | None] = (None, None)
+        self._talker: str | None = None
+        self._source_name: str | None = None
+        self._jog: dict[str, tuple[float, float]] = {}  # axis -> (rate, deadline t_s)
+        self._subscribers: set[TelemetrySubscription] = set()
+        self._recorder: Recorder | None = None
+        self._stop = False
+        self._running = False
+        self._initialised = False
+
+    # -- control surface --------------------------------------------------------------------
+    @property
+    def driver(self) -> MotorDriver:
+        """The motor driver the engine commands."""
+        return self._driver
+
+    def stop(self) -> None:
+        """Ask ``run`` to return after the current chunk."""
+        self._stop = True
+
+    def subscribe(self, maxsize: int = 256) -> TelemetrySubscription:
+        """A new telemetry subscription (drop-oldest queue of ``maxsize``)."""
+        sub = TelemetrySubscription(self, maxsize)
+        self._subscribers.add(sub)
+        return sub
+
+    def set_tracking(self, enabled: bool) -> None:
+        """Follow the target source (True; ends a manual override) or hold (False)."""
+        self._tracking = bool(enabled)
+        if enabled:
+            self._manual = False
+            self._jog.clear()
+
+    def set_target_source(self, source: TargetSource | None) -> None:
+        """Plug in (or remove) the source of targets for tracking mode."""
+        self._source = source
+        self._source_name = None if source is None else str(getattr(source, "name", type(source).__name__))
+
+    def point(self, pan_rad: float, tilt_rad: float) -> None:
+        """Manual override: point at (pan, tilt) until ``release`` or ``set_tracking(True)``."""
+        for axis, value in (("pan", pan_rad), ("tilt", tilt_rad)):
+            self._axes[axis].limits.check_target(axis, float(value))
+        self._manual = True
+        self._jog.clear()
+        self._last_target["pan"] = float(pan_rad)
+        self._last_target["tilt"] = float(tilt_rad)
+
+    def release(self) -> None:
+        """End a manual override (back to tracking if enabled, else hold)."""
+        self._manual = False
+        self._jog.clear()
+
+    def jog(self, axis: str, rate_rad_s: float, timeout_s: float = 0.5) -> None:
+        """Move ``axis`` at ``rate_rad_s`` until a rate of 0, or ``timeout_s`` without renewal."""
+        ax = self._axis(axis)
+        if not (math.isfinite(rate_rad_s) and math.isfinite(timeout_s) and timeout_s > 0):
+            raise ConfigError(f"jog {axis}: rate {rate_rad_s!r} rad/s and timeout {timeout_s!r} s must be finite")
+        limit = ax.shaping.rate_rad_s
+        if abs(rate_rad_s) > limit:
+            raise ConfigError(f"jog {axis}: rate {rate_rad_s:g} rad/s exceeds the axis rate limit {limit:g} rad/s")
+        if not self._manual:
+            self._manual = True
+            for a in AXES:  # start from where the axes are
+                self._last_target[a] = self._axes[a].y_rad if self._initialised else self._last_target[a]
+        if rate_rad_s == 0.0:
+            self._jog.pop(axis, None)
+        else:
+            self._jog[axis] = (float(rate_rad_s), self._t + float(timeout_s))
+
+    def gains(self, axis: str) -> ControllerGains:
+        """The gains in use on ``axis``."""
+        return self._axis(axis).gains
+
+    def set_gains(self, axis: str, gains: ControllerGains) -> DesignReport:
+        """Use ``gains`` on ``axis`` if its linearised loop is stable with enough phase margin.
+
+        Raises ConfigError carrying the computed margins otherwise.
+        """
+        ax = self._axis(axis)
+        report = check_gains(ax.model, gains, self.config.min_phase_margin_deg)
+        if not report.ok:
+            raise ConfigError(f"{axis} gains refused: {report.describe()}")
+        ax.set_gains(gains)
+        return report
+
+    def start_recording(self) -> None:
+        """Start recording t, u, theta of each axis."""
+        self._recorder = Recorder(AXES)
+
+    def stop_recording(self) -> dict[str, Measurement]:
+        """Stop recording; per-axis measurements in the log format."""
+        if self._recorder is None:
+            raise ConfigError("stop_recording: recording was not started")
+        rec, self._recorder = self._recorder, None
+        return rec.measurements()
+
+    def status(self) -> EngineStatus:
+        """The engine's state now."""
+        p, t = self._axes["pan"], self._axes["tilt"]
+        return EngineStatus(
+            self._t, p.y_rad, t.y_rad, p.target_rad, t.target_rad, self.mode, self._tracking,
+            self._driver.faults(), self._talker,
+        )
+
+    @property
+    def mode(self) -> str:
+        """One of MODES."""
+        if self._driver.faults():
+            return "fault"
+        if not self._driver.enabled:
+            return "disabled"
+        if self._manual:
+            return "manual"
+        if self._tracking and self._source is not None and self._source_name is not None and self._talker_fresh:
+            return "tracking"
+        return "hold"
+
+    _talker_fresh = False
+
+    # -- the loop ---------------------------------------------------------------------------
+    async def run(self, realtime: bool = True, duration_s: float | None = None) -> None:
+        """Run until ``stop()`` or ``duration_s`` of engine time have passed."""
+        if self._running:
+            raise ConfigError("engine is already running")
+        self._running = True
+        self._stop = False
+        if self.config.enable_on_start and not self._driver.enabled and not self._driver.faults():
+            try:
+                self._driver.enable()
+            except DriverFault:
+                pass
+        end = None if duration_s is None else self._t + float(duration_s)
+        wall0, sim0 = time.perf_counter(), self._t
+        try:
+            while not self._stop and (end is None or self._t < end - 1e-12):
+                self.step_chunk()
+                if realtime:
+                    lag = (self._t - sim0) - (time.perf_counter() - wall0)
+                    await asyncio.sleep(max(0.0, lag))
+                else:
+                    await asyncio.sleep(0)
+        finally:
+            self._running = False
+            for sub in list(self._subscribers):
+                sub._put(None)
+
+    def step_chunk(self) -> TelemetrySnapshot:
+        """Run one chunk of both axes and publish its snapshot (the loop's body; sync)."""
+        n = self._n_chunk
+        if not self._initialised:
+            for a, ax in self._axes.items():
+                ax.y_rad = self._driver.read_encoder(a)
+                if not self._manual:
+                    self._last_target[a] = ax.y_rad
+                ax.target_rad = self._last_target[a]
+            self._initialised = True
+        targets = self._chunk_targets(n)
+        t_chunk = self._t + np.arange(n) * self._dt
+        records: dict[str, np.ndarray] = {}
+        if isinstance(self._driver, ClosedLoopDriver) and hasattr(self._driver, "run_closed_loop"):
+            for a, ax in self._axes.items():
+                records[a] = self._driver.run_closed_loop(a, ax.cp, ax.cs, targets[a])
+        else:
+            records = self._run_per_sample(targets, n)
+        for a, ax in self._axes.items():
+            rec = records[a]
+            ax.y_rad = float(rec[-1, R_Y])
+            ax.u_v = float(rec[-1, R_U])
+            ax.target_rad = float(targets[a][-1])
+            if self._recorder is not None:
+                self._recorder.add(a, t_chunk, rec[:, R_U], rec[:, R_Y])
+        self._k += n
+        self._t = self._k * self._dt
+        snap = self._snapshot()
+        for sub in list(self._subscribers):
+            sub._put(snap)
+        return snap
+
+    def _run_per_sample(self, targets: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+        out = {a: np.zeros((n, N_REC)) for a in self._axes}
+        drv = self._driver
+        for k in range(n):
+            for a, ax in self._axes.items():
+                y = drv.read_encoder(a)
+                u = controller_step(ax.cp, ax.cs, y, float(targets[a][k])) if drv.enabled else 0.0
+                if not drv.enabled:
+                    ax.cs[11] = 0.0  # re-initialise on re-enable
+                drv.command(a, u)
+                out[a][k, R_Y], out[a][k, R_U] = y, u
+                out[a][k, 3], out[a][k, 4] = ax.cs[S_REF], ax.cs[S_OM]
+            drv.tick()
+        return out
+
+    def _chunk_targets(self, n: int) -> dict[str, np.ndarray]:
+        start = dict(self._last_target)
+        self._talker_fresh = False
+        if self._manual:
+            for a, (rate, deadline) in list(self._jog.items()):
+                if self._t >= deadline:
+                    del self._jog[a]
+                    continue
+                lim = self._axes[a].limits
+                edge = lim.upper_rad - lim.target_margin_rad
+                self._last_target[a] = float(np.clip(self._last_target[a] + rate * n * self._dt, -edge, edge))
+        elif self._tracking and self._source is not None:
+            target = as_target(self._source.target_at(self._t + n * self._dt), self._source_name or "source")
+            if target is not None:
+                self._talker_fresh = True
+                self._talker = target.talker
+                self._estimate = (target.azimuth_rad, target.elevation_rad)
+                for a, value in (("pan", target.pan_rad), ("tilt", target.tilt_rad)):
+                    lim = self._axes[a].limits
+                    self._last_target[a] = float(np.clip(value, lim.lower_rad, lim.upper_rad))
+        frac = np.arange(1, n + 1) / n
+        return {a: start[a] + (self._last_target[a] - start[a]) * frac for a in AXES}
+
+    def _snapshot(self) -> TelemetrySnapshot:
+        p, t = self._axes["pan"], self._axes["tilt"]
+        source = self._source_name if (self._tracking and not self._manual) else ("manual" if self._manual else None)
+        return TelemetrySnapshot(
+            self._t, p.y_rad, t.y_rad, p.target_rad, t.target_rad, p.u_v, t.u_v, self.mode, self._tracking,
+            source, self._estimate[0], self._estimate[1],
+        )
+
+    def _axis(self, axis: str) -> _Axis:
+        try:
+            return self._axes[axis]
+        except KeyError:
+            raise ConfigError(f"unknown axis {axis!r}; axes are {', '.join(AXES)}") from None
+
+    def observed(self, axis: str) -> tuple[float, float]:
+        """The observer's angle (rad) and velocity (rad/s) of ``axis``."""
+        cs = self._axis(axis).cs
+        return float(cs[S_TH]), float(cs[S_OM])
