@@ -1,0 +1,86 @@
+"""Conversions between stored JSON and engine values: models, measurements, plot series (degrees)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from app.db import Database
+from app.errors import NotFound
+from tracker.plant.model import AxisModel
+from tracker.workbench.data import Measurement, parse_log
+
+MAX_PLOT_POINTS = 1500
+
+
+def model_to_json(model: AxisModel, axis: str) -> dict[str, Any]:
+    """A model as stored in a version."""
+    return {
+        "axis": axis,
+        "gain_nm_per_v": model.gain_nm_per_v,
+        "effects": list(model.effects),
+        "params": {k: float(v) for k, v in model.params.items()},
+    }
+
+
+def model_from_json(data: dict[str, Any]) -> AxisModel:
+    """The stored model back (parameters as stored, not reset to defaults)."""
+    params = {str(k): float(v) for k, v in data["params"].items()}
+    return AxisModel.create(float(data["gain_nm_per_v"]), params, tuple(data["effects"]), params)
+
+
+def load_measurement(db: Database, measurement_id: int) -> tuple[dict[str, Any], Measurement]:
+    """The stored record and the parsed measurement; NotFound when unknown."""
+    rec = db.get_measurement(measurement_id)
+    if rec is None:
+        raise NotFound(f"no measurement {measurement_id}")
+    return rec, parse_log(rec["csv"], rec["name"])
+
+
+def load_version(
+    db: Database, measurement_id: int, version_id: int | None
+) -> tuple[dict[str, Any], AxisModel]:
+    """A version of the measurement's model (the latest when ``version_id`` is None)."""
+    if version_id is None:
+        versions = db.list_versions(measurement_id)
+        if not versions:
+            raise NotFound(f"measurement {measurement_id} has no model versions")
+        v = versions[-1]
+    else:
+        got = db.get_version(version_id)
+        if got is None or got["measurement_id"] != measurement_id:
+            raise NotFound(f"no version {version_id} of measurement {measurement_id}")
+        v = got
+    return v, model_from_json(v["model"])
+
+
+def decimate_index(n: int, max_points: int = MAX_PLOT_POINTS) -> np.ndarray:
+    """Indices that keep at most ``max_points`` evenly spread samples."""
+    step = max(1, math.ceil(n / max_points))
+    return np.arange(0, n, step)
+
+
+def series_deg(t_s: np.ndarray, **arrays_rad: np.ndarray) -> dict[str, list[float]]:
+    """Decimated plot series: ``t_s`` and each array converted to degrees (key ``<name>_deg``)."""
+    idx = decimate_index(len(t_s))
+    out = {"t_s": np.round(t_s[idx], 5).tolist()}
+    for name, arr in arrays_rad.items():
+        out[f"{name}_deg"] = np.round(np.degrees(np.asarray(arr)[idx]), 5).tolist()
+    return out
+
+
+def plain(value: Any) -> Any:
+    """JSON-ready copy (numpy arrays/scalars to lists/floats, non-finite floats to None)."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, np.generic):
+        return plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

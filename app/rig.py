@@ -1,0 +1,155 @@
+"""Thin adapter between the service and the engine: build the rig and engine from settings, wire
+the audio tracker in as the target source, and read what the routes need (limits, the plant
+model of an axis, a predicted step response). Everything delegates to ``tracker``; no physics
+lives in app/.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+import numpy as np
+
+from app.settings import Settings
+from tracker.errors import ConfigError
+
+log = logging.getLogger("app.rig")
+
+EXPERIMENTS = ("mixed", "steps", "sine_sweep", "slow_ramps")
+AXES = ("pan", "tilt")
+
+
+def build_driver(settings: Settings, hidden: Any = None, axis: str = "pan") -> Any:
+    """The simulated rig: hidden effects from ``settings.rig_config`` (JSON), or the model
+    ``hidden`` on ``axis`` (the practice rig) with the seed's model on the other axis."""
+    from tracker.drivers.sim import SimDriver, rig_models
+
+    if hidden is not None:
+        models = dict(rig_models())
+        if not hidden.has("quantization"):
+            hidden = hidden.with_effect("quantization")
+        models[axis] = hidden
+        return SimDriver.from_models(models)
+    if settings.rig_config is not None:
+        return SimDriver.from_config(settings.rig_config)
+    return SimDriver()
+
+
+def build_engine(settings: Settings) -> Any:
+    """The engine on the simulated rig, with the service's phase-margin floor."""
+    from tracker.engine import Engine, EngineConfig
+
+    return Engine(build_driver(settings), EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg))
+
+
+def soft_limit_rad(engine: Any, axis: str) -> float:
+    """The ± soft limit of ``axis`` (rad)."""
+    from tracker.control.limits import SoftLimits
+
+    return SoftLimits.for_axis(axis).upper_rad
+
+
+def axis_model(engine: Any, axis: str) -> Any:
+    """The plant model the engine designed ``axis``' controller on."""
+    from tracker.plant.model import AxisModel
+
+    models = getattr(getattr(engine, "config", None), "models", None) or {}
+    return models.get(axis) or AxisModel.for_axis(axis)
+
+
+def check_angle(axis: str, angle_deg: float, limit_deg: float) -> None:
+    """Raise ConfigError (→ 422) naming the limit when ``angle_deg`` is outside ±limit."""
+    if not math.isfinite(angle_deg) or abs(angle_deg) > limit_deg + 1e-9:
+        raise ConfigError(f"{axis} angle {angle_deg:g}° is outside the soft limit ±{limit_deg:g}°")
+
+
+def step_response(
+    engine: Any, axis: str, gains: Any, amplitude_rad: float, duration_s: float
+) -> dict[str, Any]:
+    """Predicted response of ``axis`` to a step of ``amplitude_rad`` with ``gains``.
+
+    Uses ``tracker.control.design.predicted_step_response`` when the engine provides it, else
+    the engine's compiled closed loop (shaping, limits, Coulomb friction) on the axis model.
+    Returns t_s, angle_rad (shape (n,)) and overshoot_percent, rise_time_s (10–90 %).
+    """
+    from tracker.control import design
+
+    model = axis_model(engine, axis)
+    fn = getattr(design, "predicted_step_response", None)
+    if fn is not None:
+        res = fn(model, gains, amplitude_rad, duration_s)
+        t = np.asarray(getattr(res, "t_s", None) if not isinstance(res, tuple) else res[0], dtype=float)
+        y = getattr(res, "theta_rad", None) if not isinstance(res, tuple) else res[1]
+        if y is None:
+            y = getattr(res, "load_theta_rad", None)
+        y = np.asarray(y, dtype=float)
+    else:
+        from tracker.control.closed_loop import simulate_closed_loop
+        from tracker.control.limits import SoftLimits
+
+        dt_s = 1e-3
+        n = int(round(duration_s / dt_s))
+        shaping = getattr(getattr(engine, "config", None), "shaping", {}).get(axis)
+        res = simulate_closed_loop(
+            model,
+            model,
+            gains,
+            np.full(n, amplitude_rad),
+            dt_s,
+            limits=SoftLimits(-math.pi, math.pi),
+            shaping=shaping,
+        )
+        t, y = res.t_s, res.load_theta_rad
+    return {"t_s": t, "angle_rad": y, **_step_figures(t, y, amplitude_rad)}
+
+
+def _step_figures(t: np.ndarray, y: np.ndarray, amplitude_rad: float) -> dict[str, float | None]:
+    if y.size == 0 or not np.all(np.isfinite(y)):
+        return {"overshoot_percent": None, "rise_time_s": None}
+    overshoot = max(0.0, (float(np.max(y)) - amplitude_rad) / amplitude_rad * 100.0)
+    lo = np.flatnonzero(y >= 0.1 * amplitude_rad)
+    hi = np.flatnonzero(y >= 0.9 * amplitude_rad)
+    rise = float(t[hi[0]] - t[lo[0]]) if lo.size and hi.size else None
+    return {"overshoot_percent": overshoot, "rise_time_s": rise}
+
+
+def random_practice_model(axis: str, seed: int) -> Any:
+    """The seed's model of ``axis`` with one effect, picked by ``seed``, at random physical values."""
+    from tracker.workbench.experiments import HIDDEN_RANGES, random_hidden_model
+
+    names = sorted(HIDDEN_RANGES)
+    effect = names[int(np.random.default_rng(seed).integers(len(names)))]
+    return random_hidden_model(axis, [effect], seed)
+
+
+def run_experiment(truth: Any, kind: str, duration_s: float, seed: int) -> Any:
+    """Record one experiment on a twin of ``truth`` (a workbench Measurement)."""
+    from tracker.workbench.experiments import generate_measurement
+
+    if kind not in EXPERIMENTS:
+        raise ConfigError(f"unknown experiment {kind!r}; experiments: {', '.join(EXPERIMENTS)}")
+    return generate_measurement(truth, duration_s=duration_s, seed=seed)
+
+
+def run_friction_id(driver: Any, axis: str, progress: Any, cancel: Any) -> dict[str, Any]:
+    """The friction-ID experiment on ``driver`` (JSON-ready result with the torque–velocity data)."""
+    from tracker.workbench import friction_id
+
+    result = friction_id.run_friction_id(driver, axis=axis, progress=progress, cancel=cancel)
+    return result.to_dict() if hasattr(result, "to_dict") else dict(result)
+
+
+def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:
+    """Wire the simulated room's talker tracker in as the engine's target source.
+
+    Returns (handle, note); the handle is None and the note says why when audio is unavailable.
+    """
+    return None, "audio target source not wired yet"
+
+
+async def detach_audio(handle: Any) -> None:
+    close = getattr(handle, "close", None)
+    if close is not None:
+        close()

@@ -1,0 +1,18 @@
+"""REST and WebSocket routes, one module per resource; all mounted under /api/v1."""
+
+from __future__ import annotations
+
+from app.routes import gains, jobs, keys, pointing, practice, presets, status, telemetry, tracking, workbench
+
+ALL_ROUTERS = (
+    status.router,
+    tracking.router,
+    pointing.router,
+    presets.router,
+    gains.router,
+    workbench.router,
+    jobs.router,
+    practice.router,
+    telemetry.router,
+    keys.router,
+)

@@ -1,0 +1,57 @@
+"""Jobs: friction-ID (start, progress, cancel, result) and the list of recent jobs.
+
+Friction-ID runs the seed's experiment automated — constant voltages across the range, the
+steady speed of each — through ``tracker.workbench.friction_id`` on a simulated rig built like
+the live one (``source="rig"``) or like the practice rig (``source="practice"``), so the live
+camera keeps tracking while the job runs. On real hardware the job would take the axis over.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter
+
+from app import rig
+from app.auth import Engineer, Viewer
+from app.errors import NotFound
+from app.jobs import CancelToken, Progress
+from app.modelio import plain
+from app.routes.practice import practice_model
+from app.schemas import FrictionJobIn
+from app.service import Svc
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+
+
+@router.post("/friction-id", status_code=202, summary="Start a friction-ID job; poll GET /jobs/{id}")
+async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dict[str, Any]:
+    hidden = practice_model(svc.db) if body.source == "practice" else None
+    if body.source == "practice" and hidden is None:
+        raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
+    settings = svc.settings
+
+    def work(progress: Progress, cancel: CancelToken) -> dict[str, Any]:
+        driver = rig.build_driver(settings, hidden=hidden, axis=body.axis)
+        return plain(rig.run_friction_id(driver, body.axis, progress, cancel))
+
+    job_id = svc.jobs.start("friction-id", body.model_dump(), work)
+    return svc.db.get_job(job_id) or {"id": job_id}
+
+
+@router.get("", summary="Recent jobs (newest first, without results)")
+async def list_jobs(svc: Svc, who: Viewer) -> list[dict[str, Any]]:
+    return svc.db.list_jobs()
+
+
+@router.get("/{job_id}", summary="A job: state, progress, message and (when done) its result")
+async def get_job(job_id: int, svc: Svc, who: Viewer) -> dict[str, Any]:
+    job = svc.db.get_job(job_id)
+    if job is None:
+        raise NotFound(f"no job {job_id}")
+    return job
+
+
+@router.post("/{job_id}/cancel", summary="Ask a running job to stop")
+async def cancel_job(job_id: int, svc: Svc, who: Engineer) -> dict[str, Any]:
+    return svc.jobs.cancel(job_id)

@@ -1,0 +1,46 @@
+"""API keys (admin): list, create (the key is shown once), revoke; GET /whoami for any key."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter
+
+from app.auth import Admin, Role, Viewer, create_key
+from app.errors import NotFound
+from app.schemas import KeyIn, KeyOut
+from app.service import Svc
+
+router = APIRouter(tags=["keys"])
+
+
+@router.get("/whoami", summary="The calling key's name and role")
+async def whoami(svc: Svc, who: Viewer) -> dict[str, Any]:
+    return {
+        "name": who.name,
+        "role": who.role.name,
+        "key_id": who.key_id,
+        "roles": [r.name for r in Role if r <= who.role],
+    }
+
+
+@router.get("/keys", response_model=list[KeyOut], summary="List keys (hashes are never shown)")
+async def list_keys(svc: Svc, who: Admin) -> list[KeyOut]:
+    return [
+        KeyOut(id=k.id, name=k.name, role=k.role, prefix=k.prefix, revoked=k.revoked)
+        for k in svc.db.list_keys()
+    ]
+
+
+@router.post(
+    "/keys", response_model=KeyOut, status_code=201, summary="Create a key; the response holds it once"
+)
+async def post_key(body: KeyIn, svc: Svc, who: Admin) -> KeyOut:
+    key_id, key = create_key(svc.db, body.name, Role.parse(body.role))
+    return KeyOut(id=key_id, name=body.name, role=body.role, prefix=key[:9], revoked=False, key=key)
+
+
+@router.delete("/keys/{key_id}", status_code=204, summary="Revoke a key")
+async def delete_key(key_id: int, svc: Svc, who: Admin) -> None:
+    if not svc.db.revoke_key(key_id):
+        raise NotFound(f"no key {key_id}")

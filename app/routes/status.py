@@ -1,0 +1,54 @@
+"""GET /status: where the camera points, what it is doing, who holds manual control; GET /viewer."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from fastapi import APIRouter
+
+from app.auth import Viewer
+from app.schemas import StatusOut
+from app.service import Service, Svc
+
+router = APIRouter(tags=["status"])
+
+
+def status_of(svc: Service) -> StatusOut:
+    """The engine's status in degrees, with the service's own view (control holder, viewers)."""
+    st = svc.engine.status()
+    return StatusOut(
+        t_s=float(st.t_s),
+        pan_deg=math.degrees(st.pan_rad),
+        tilt_deg=math.degrees(st.tilt_rad),
+        pan_target_deg=math.degrees(st.pan_target_rad),
+        tilt_target_deg=math.degrees(st.tilt_target_rad),
+        mode=str(st.mode),
+        tracking=bool(st.tracking),
+        active_talker=st.active_talker,
+        faults=[str(f) for f in st.faults],
+        control_holder=svc.lock.describe(),
+        limits_deg=svc.limits_deg(),
+        telemetry_clients=svc.hub.clients,
+        viewer=svc.viewer.scene_state() if svc.viewer is not None else None,
+    )
+
+
+@router.get("/status", response_model=StatusOut, summary="Angles (deg), mode, tracking, talker, faults")
+async def get_status(svc: Svc, who: Viewer) -> StatusOut:
+    return status_of(svc)
+
+
+@router.get("/viewer", summary="The 3D view: its address and what its scene shows now")
+async def get_viewer(svc: Svc, who: Viewer) -> dict[str, Any]:
+    if svc.viewer is None:
+        return {
+            "enabled": False,
+            "note": "the 3D view is disabled (TRACKER_VIEWER_ENABLED) or failed to start",
+        }
+    return {"enabled": True, **svc.viewer.scene_state()}
+
+
+@router.get("/health", summary="Liveness (no key needed)")
+async def health(svc: Svc) -> dict[str, Any]:
+    return {"ok": svc.engine_running, "engine_running": svc.engine_running, "audio": svc.audio_note or "on"}

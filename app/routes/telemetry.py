@@ -1,0 +1,78 @@
+"""WS /telemetry: angles, targets, commands and localizer estimates as JSON frames (≥ 50 Hz).
+
+Authenticate with the ``X-API-Key`` header, or (browsers cannot set WebSocket headers) send
+``{"key": "..."}`` as the first message within 5 s. The server answers ``{"type": "hello", ...}``
+and then streams ``{"type": "frame", "t_s", "pan_deg", "tilt_deg", "pan_target_deg",
+"tilt_target_deg", "pan_u_v", "tilt_u_v", "mode", "tracking", "source", "estimate_azimuth_deg",
+"estimate_elevation_deg"}``. Close codes: 4401 no/unknown key, 4408 no key in time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+
+from app.auth import websocket_principal
+
+router = APIRouter(tags=["telemetry"])
+AUTH_TIMEOUT_S = 5.0
+
+
+async def _receive_key(ws: WebSocket) -> str | None:
+    try:
+        text = await asyncio.wait_for(ws.receive_text(), timeout=AUTH_TIMEOUT_S)
+    except TimeoutError:
+        return None
+    try:
+        msg = json.loads(text)
+    except ValueError:
+        return None
+    key = msg.get("key") if isinstance(msg, dict) else None
+    return key if isinstance(key, str) else None
+
+
+async def _drain_client(ws: WebSocket) -> None:
+    """Read (and ignore) client messages so a disconnect is noticed."""
+    while True:
+        await ws.receive_text()
+
+
+@router.websocket("/telemetry")
+async def telemetry(ws: WebSocket) -> None:
+    await ws.accept()
+    who = websocket_principal(ws, None)
+    if who is None:
+        key = await _receive_key(ws)
+        who = websocket_principal(ws, key)
+        if who is None:
+            await ws.close(code=4401 if key else 4408, reason="unknown or missing API key")
+            return
+    svc = ws.app.state.svc
+    sub = svc.hub.subscribe(maxsize=256)
+    reader = asyncio.create_task(_drain_client(ws))
+    try:
+        await ws.send_json(
+            {
+                "type": "hello",
+                "name": who.name,
+                "role": who.role.name,
+                "rate_hz": svc.settings.telemetry_rate_hz,
+            }
+        )
+        while True:
+            get = asyncio.ensure_future(sub.queue.get())
+            done, _ = await asyncio.wait({get, reader}, return_when=asyncio.FIRST_COMPLETED)
+            if reader in done:
+                get.cancel()
+                break
+            await ws.send_text(json.dumps(get.result(), separators=(",", ":")))
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        sub.close()
+        reader.cancel()
+        with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError, Exception):
+            await reader

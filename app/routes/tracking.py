@@ -1,0 +1,25 @@
+"""PUT /tracking: follow the talker (audio target source) or hold the manual target."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from app.auth import Operator
+from app.schemas import TrackingIn, TrackingOut
+from app.service import Svc
+
+router = APIRouter(tags=["tracking"])
+
+
+@router.put("/tracking", response_model=TrackingOut, summary="Turn talker tracking on or off")
+async def put_tracking(body: TrackingIn, svc: Svc, who: Operator) -> TrackingOut:
+    if body.enabled:
+        # Re-enabling tracking ends the manual override: only the holder of manual control (or
+        # anyone when nobody holds it) may do that; 409 otherwise.
+        svc.lock.acquire(who)
+        svc.engine.set_tracking(True)
+        svc.lock.release(who)
+    else:
+        svc.engine.set_tracking(False)
+    st = svc.engine.status()
+    return TrackingOut(tracking=bool(st.tracking), mode=str(st.mode))

@@ -1,0 +1,102 @@
+"""The running service: settings, database, engine task, telemetry hub, control lock, jobs, 3D view.
+
+One :class:`Service` lives in ``app.state.svc`` for the lifetime of the FastAPI app; the lifespan
+in :mod:`app.main` starts and stops it. Routes reach it through :func:`get_service`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+from typing import Annotated, Any
+
+from fastapi import Depends, Request
+
+from app import rig
+from app.auth import ensure_admin_key
+from app.control_lock import ControlLock
+from app.db import Database
+from app.jobs import JobRunner
+from app.settings import Settings
+from app.telemetry import TelemetryHub
+
+log = logging.getLogger("app")
+
+
+class Service:
+    """Everything a request may need, created once per app."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.db = Database(settings.db_path)
+        self.first_admin_key = ensure_admin_key(self.db, settings.admin_key_path)
+        self.db.fail_unfinished_jobs()
+        self.lock = ControlLock(ttl_s=settings.control_lock_ttl_s)
+        self.hub = TelemetryHub(rate_hz=settings.telemetry_rate_hz)
+        self.jobs = JobRunner(self.db)
+        self.engine: Any = None
+        self.audio: Any = None
+        self.viewer: Any = None
+        self.audio_note: str | None = None
+        self._engine_task: asyncio.Task[None] | None = None
+
+    async def start(self) -> None:
+        """Build and start the engine, the telemetry hub, the audio target source and the 3D view."""
+        s = self.settings
+        self.engine = rig.build_engine(s)
+        self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
+        self.hub.start(self.engine)
+        if s.audio_enabled:
+            self.audio, self.audio_note = rig.attach_audio(self.engine, s)
+        if s.viewer_enabled:
+            from app.viewer import RigViewer, load_mics
+
+            try:
+                self.viewer = RigViewer(s.viewer_host, s.viewer_port, load_mics(s.array_file))
+                self.viewer.start(self.hub, s.viewer_rate_hz)
+            except OSError as exc:
+                log.error("3D view not started (%s:%d): %s", s.viewer_host, s.viewer_port, exc)
+                self.viewer = None
+
+    async def _run_engine(self) -> None:
+        try:
+            await self.engine.run(realtime=self.settings.realtime)
+        except asyncio.CancelledError:
+            raise
+        except Exception:
+            log.exception("the engine loop stopped with an error")
+
+    async def stop(self) -> None:
+        await self.jobs.shutdown()
+        if self.viewer is not None:
+            await self.viewer.stop()
+        if self.audio is not None:
+            with contextlib.suppress(Exception):
+                await rig.detach_audio(self.audio)
+        if self.engine is not None:
+            self.engine.stop()
+        if self._engine_task is not None:
+            try:
+                await asyncio.wait_for(self._engine_task, timeout=3.0)
+            except (TimeoutError, asyncio.CancelledError):
+                self._engine_task.cancel()
+        await self.hub.stop()
+        self.db.close()
+
+    @property
+    def engine_running(self) -> bool:
+        return self._engine_task is not None and not self._engine_task.done()
+
+    def limits_deg(self) -> dict[str, float]:
+        """Soft limits per axis (± degrees)."""
+        return {axis: math.degrees(rig.soft_limit_rad(self.engine, axis)) for axis in ("pan", "tilt")}
+
+
+def get_service(request: Request) -> Service:
+    svc: Service = request.app.state.svc
+    return svc
+
+
+Svc = Annotated[Service, Depends(get_service)]

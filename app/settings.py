@@ -1,0 +1,121 @@
+"""Service settings in one place: embedded defaults, then a TOML config file, then TRACKER_* variables.
+
+Precedence (highest first): values passed in code, environment variables with the ``TRACKER_``
+prefix (``TRACKER_PORT=9000``, ``TRACKER_VIEWER_ENABLED=false``), the TOML file named by
+``--config`` or ``TRACKER_CONFIG``, the defaults below. The defaults run a working console with
+nothing else installed: the simulated room and rig, SQLite in ``./data``.
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, ValidationError
+from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
+
+from tracker.errors import ConfigError
+
+ENV_PREFIX = "TRACKER_"
+
+
+class Settings(BaseSettings):
+    """Everything the service reads at start-up."""
+
+    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, extra="forbid", frozen=True)
+
+    host: str = Field("127.0.0.1", description="address the console binds to")
+    port: int = Field(8000, ge=0, le=65535, description="console port (0 picks a free one)")
+    data_dir: Path = Field(Path("data"), description="SQLite database and the first admin key")
+    realtime: bool = Field(True, description="run the engine at wall-clock pace")
+
+    rig_config: Path | None = Field(None, description="TOML/JSON of hidden effects for the simulated rig")
+    audio_enabled: bool = Field(True, description="use the simulated room as the tracking target source")
+    array_file: Path | None = Field(
+        None, description="microphone array JSON; default: the shipped 4-mic square"
+    )
+
+    viewer_enabled: bool = Field(True, description="start the viser 3D view")
+    viewer_host: str = Field("127.0.0.1", description="viser binds here; it has no authentication")
+    viewer_port: int = Field(8081, ge=0, le=65535)
+    viewer_rate_hz: float = Field(30.0, gt=0, le=120)
+
+    telemetry_rate_hz: float = Field(100.0, ge=50.0, le=1000.0, description="WebSocket frame rate")
+    jog_timeout_s: float = Field(0.5, gt=0.0, le=5.0, description="a jog stops by itself after this")
+    control_lock_ttl_s: float = Field(30.0, gt=0.0, description="manual control lapses when idle this long")
+    min_phase_margin_deg: float = Field(45.0, ge=0.0, le=90.0, description="gains under this are refused")
+    max_upload_bytes: int = Field(50_000_000, gt=0)
+    log_level: Literal["debug", "info", "warning", "error"] = "info"
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        return (init_settings, env_settings, _FileSource(settings_cls))
+
+    @property
+    def db_path(self) -> Path:
+        """The SQLite database file."""
+        return self.data_dir / "console.sqlite3"
+
+    @property
+    def admin_key_path(self) -> Path:
+        """Where the first start writes the admin key (mode 0600)."""
+        return self.data_dir / "admin.key"
+
+
+class _FileSource(PydanticBaseSettingsSource):
+    """Values from the TOML file in ``_FILE_VALUES`` (set by :func:`load_settings`)."""
+
+    values: dict[str, Any] = {}
+
+    def get_field_value(self, field: Any, field_name: str) -> tuple[Any, str, bool]:
+        return self.values.get(field_name), field_name, False
+
+    def __call__(self) -> dict[str, Any]:
+        return dict(self.values)
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """Read a TOML config file; keys are settings names (a ``[tracker]`` table is also accepted)."""
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"config file {p}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"config file {p}: cannot read ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"config file {p}: {exc}") from None
+    if isinstance(data.get("tracker"), dict):
+        data = data["tracker"]
+    return data
+
+
+def load_settings(config: str | Path | None = None, **overrides: Any) -> Settings:
+    """Settings from defaults, the config file (``config`` or TRACKER_CONFIG), env and ``overrides``.
+
+    Raises ConfigError naming the bad setting and where it came from.
+    """
+    path = config or os.environ.get(f"{ENV_PREFIX}CONFIG")
+    file_values = read_config_file(path) if path else {}
+    overrides = {k: v for k, v in overrides.items() if v is not None}
+    _FileSource.values = file_values
+    try:
+        return Settings(**overrides)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        name = ".".join(str(x) for x in first["loc"])
+        where = f"config file {path}" if name in file_values else f"environment {ENV_PREFIX}{name.upper()}"
+        if name in overrides:
+            where = "command line"
+        raise ConfigError(f"setting {name!r} ({where}): {first['msg']}") from None
+    finally:
+        _FileSource.values = {}

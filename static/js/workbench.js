@@ -1,0 +1,170 @@
+// Workbench page: measurements, model vs measurement, residuals, error by regime, diagnosis
+// cards with "add effect", and the fit by model version.
+import { $, api, esc, fmt, get, post, toast } from "./api.js";
+import { C, bars, line, makeChart, setData, watchSize } from "./charts.js";
+
+let session;
+let selected = null;      // measurement id
+let versions = [];
+let busy = false;
+
+export function init(s) {
+  session = s;
+  makeChart($("plot-overlay"), { height: 230, yLabel: "θ °", series: [line("measured", C.actual), line("model", C.target)] });
+  makeChart($("plot-residual"), { height: 140, xLabel: "time (s)", yLabel: "residual °", series: [line("residual", "#6f42c1")] });
+  makeChart($("plot-acf"), { height: 150, yLabel: "autocorr.", xLabel: "lag (s)",
+    series: [line("residual autocorrelation", C.actual), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });
+  makeChart($("plot-ccf"), { height: 150, yLabel: "cross-corr.", xLabel: "lag (s)",
+    series: [line("input–residual", C.target), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });
+  makeChart($("plot-versions"), {
+    height: 180, xLabel: "version", yLabel: "RMS error °",
+    series: [bars("RMS error °", "#e8590c"), { label: "fit %", stroke: C.actual, width: 2, scale: "fit", points: { show: true, size: 7 } }],
+    opts: {
+      axes: [
+        { label: "version", stroke: "#5f6b7a", grid: { show: false }, incrs: [1], values: (u, vals) => vals.map((v) => `v${v}`) },
+        { label: "RMS error °", stroke: "#e8590c", grid: { stroke: "#eef1f5" }, size: 56 },
+        { scale: "fit", side: 1, label: "fit %", stroke: C.actual, grid: { show: false }, size: 50 },
+      ],
+      scales: { x: { time: false, range: (u, mn, mx) => [mn - 0.6, mx + 0.6] }, fit: { range: [null, 100] } },
+      cursor: { drag: { x: false, y: false } },
+    },
+  });
+  for (const id of ["plot-overlay", "plot-residual", "plot-acf", "plot-ccf", "plot-versions"]) watchSize($(id));
+  $("upload-form").addEventListener("submit", upload);
+  $("wb-diagnose").addEventListener("click", () => diagnose());
+  $("wb-fit").addEventListener("click", refit);
+}
+
+export function show() { loadList(); }
+
+export async function selectMeasurement(id) {
+  selected = id;
+  for (const li of document.querySelectorAll("#meas-list li")) li.classList.toggle("selected", +li.dataset.id === id);
+  $("diag-cards").innerHTML = ""; $("wb-verdict").textContent = ""; $("wb-error").textContent = "";
+  const canEdit = session.can("engineer");
+  $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit;
+  await loadVersions();
+  await compare();
+}
+window.console3dat_workbench = { selectMeasurement, get selected() { return selected; }, get versions() { return versions; } };
+
+async function loadList() {
+  try {
+    const list = await get("/workbench/measurements");
+    $("meas-list").innerHTML = list.length ? list.slice().reverse().map((m) => `<li data-id="${m.id}" class="${m.id === selected ? "selected" : ""}">
+      <span><b>${esc(m.name)}</b><br><span class="meta">#${m.id} · ${m.axis} · ${(m.n * m.dt_s).toFixed(1)} s at ${(1 / m.dt_s).toFixed(0)} Hz</span></span></li>`).join("")
+      : `<li class="muted">No measurements yet: upload a CSV or record one on the practice rig.</li>`;
+    for (const li of document.querySelectorAll("#meas-list li[data-id]")) li.onclick = () => selectMeasurement(+li.dataset.id);
+  } catch (e) { toast(e.message, true); }
+}
+
+async function upload(ev) {
+  ev.preventDefault();
+  $("upload-error").textContent = "";
+  const file = $("upload-file").files[0];
+  if (!file) return;
+  const form = new FormData();
+  form.append("file", file);
+  form.append("axis", $("upload-axis").value);
+  setBusy(true);
+  try {
+    const rec = await api("POST", "/workbench/measurements", undefined, { form });
+    toast(`Uploaded ${rec.name}`);
+    $("upload-file").value = "";
+    await loadList();
+    await selectMeasurement(rec.id);
+    await diagnose();
+  } catch (e) { $("upload-error").textContent = e.message; }
+  finally { setBusy(false); }
+}
+
+function setBusy(on) { busy = on; $("wb-busy").hidden = !on; }
+
+async function loadVersions() {
+  versions = await get(`/workbench/measurements/${selected}/versions`);
+  const x = versions.map((_, i) => i + 1);
+  setData($("plot-versions"), [x, versions.map((v) => v.fit.rms_deg), versions.map((v) => v.fit.fit_percent)]);
+  $("version-list").innerHTML = versions.map((v, i) => `<li><span><b>v${i + 1}</b> ${esc(v.label)}<br>
+    <span class="meta">${v.model.effects.length ? esc(v.model.effects.join(", ")) : "base model"}</span></span>
+    <span class="meta">${fmt(v.fit.rms_deg, 4)}° · ${fmt(v.fit.fit_percent, 2)} %</span></li>`).join("");
+}
+
+async function compare() {
+  const m = await post(`/workbench/measurements/${selected}/compare`, {});
+  $("wb-title").textContent = `Measurement #${selected} vs ${m.version_label} (v${versions.length})`;
+  const s = m.series;
+  setData($("plot-overlay"), [s.t_s, s.measured_deg, s.model_deg]);
+  setData($("plot-residual"), [s.t_s, s.residual_deg]);
+  $("wb-summary").innerHTML = [
+    ["Fit", `${fmt(m.fit_percent, 2)} %`], ["Fit of increments", `${fmt(m.fit_percent_increment, 1)} %`],
+    ["RMS error", `${fmt(m.rms_deg, 4)}°`], ["Horizon", m.horizon_s ? `${fmt(m.horizon_s * 1000, 0)} ms ahead` : "free run"],
+  ].map(([k, v]) => `<div class="metric"><div class="k">${k}</div><div class="v">${v}</div></div>`).join("");
+  showRegimes(m);
+  showResiduals(m.residual_analysis);
+}
+
+function showRegimes(m) {
+  const rows = Object.entries(m.regimes || {}).map(([k, r]) => [k.replaceAll("_", " "), r.rms_deg, r.share_of_error_percent]);
+  const bins = Object.entries(m.position_bins || {}).map(([k, r]) => [`θ ${k}`, r.rms_deg, r.share_of_error_percent]);
+  const all = [...rows, ...bins].filter((r) => r[1] !== null && r[1] !== undefined);
+  const max = Math.max(1e-12, ...all.map((r) => r[1]));
+  const html = (list) => list.map(([k, v, share]) => `<div class="barrow" title="${fmt(share, 0)} % of the squared error">
+    <span>${esc(k)}</span><span class="track"><span class="fill" style="display:block;width:${(100 * v / max).toFixed(1)}%"></span></span>
+    <span class="num">${fmt(v, 4)}</span></div>`).join("");
+  $("regime-bars").innerHTML = html(rows) + (bins.length ? `<h3>By position</h3>` + html(bins) : "");
+}
+
+function showResiduals(r) {
+  if (!r || !r.autocorr_lags_s) return;
+  const a = r.autocorr_lags_s, b = r.autocorr_bound;
+  setData($("plot-acf"), [a, r.autocorr, a.map(() => b), a.map(() => -b)]);
+  const x = r.xcorr_lags_s, xb = r.xcorr_bound;
+  setData($("plot-ccf"), [x, r.xcorr, x.map(() => xb), x.map(() => -xb)]);
+  $("resid-note").textContent = `Residuals ${r.white ? "look white" : "are correlated in time"} (${fmt(100 * r.autocorr_outside_fraction, 0)} % of lags outside the bound); `
+    + `${r.independent_of_input ? "independent of the input" : `correlated with the input, peak at ${fmt(1000 * r.xcorr_peak_lag_s, 0)} ms`}.`;
+}
+
+export async function diagnose() {
+  if (!selected) return;
+  $("wb-error").textContent = "";
+  setBusy(true);
+  try {
+    const d = await post(`/workbench/measurements/${selected}/diagnose`, {});
+    $("wb-verdict").textContent = d.verdict ? `Most likely missing: ${d.verdict}` : "Nothing significant is missing: the model explains the data.";
+    const cands = d.candidates || [];
+    $("diag-cards").innerHTML = cands.map((c, i) => `<div class="dcard ${c.effect === d.verdict ? "top" : ""} ${c.significant ? "" : "insignificant"}">
+      <h3><span>${i + 1}. ${esc(c.effect)}</span><span class="badge ${c.significant ? "sig" : ""}">${c.significant ? "significant" : "not significant"}</span></h3>
+      <div>fit would reach <span class="fit">${fmt(c.fit_percent, 2)} %</span></div>
+      <div class="evidence">${esc(c.evidence || "")}</div>
+      <div class="params">${Object.entries(c.params || {}).map(([k, v]) => `${esc(k)} = ${Number(v).toPrecision(4)}${c.stderr && c.stderr[k] ? ` ± ${Number(c.stderr[k]).toPrecision(2)}` : ""}`).join("<br>")}</div>
+      <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") ? "" : "disabled"}>Add effect</button>
+    </div>`).join("") + (d.notes && d.notes.length ? `<p class="muted small">${d.notes.map(esc).join("<br>")}</p>` : "");
+    for (const b of document.querySelectorAll("[data-add]")) b.onclick = () => addEffect(b.dataset.add);
+  } catch (e) { $("wb-error").textContent = e.message; }
+  finally { setBusy(false); }
+}
+
+async function addEffect(effect) {
+  if (busy) return;
+  setBusy(true);
+  $("wb-error").textContent = "";
+  try {
+    const v = await post(`/workbench/measurements/${selected}/add-effect`, { effect });
+    toast(`Added ${effect}: RMS ${fmt(v.fit.rms_deg, 4)}°`);
+    await loadVersions();
+    await compare();
+    setBusy(false);
+    await diagnose();
+  } catch (e) { $("wb-error").textContent = e.message; }
+  finally { setBusy(false); }
+}
+
+async function refit() {
+  setBusy(true);
+  try {
+    await post(`/workbench/measurements/${selected}/fit`, {});
+    await loadVersions();
+    await compare();
+  } catch (e) { $("wb-error").textContent = e.message; }
+  finally { setBusy(false); }
+}
