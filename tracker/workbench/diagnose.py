@@ -1,0 +1,252 @@
+"""Which physical effect is the model missing? Rank every effect of the catalogue, give a verdict.
+
+Two stages (see docs/workbench.md, "Diagnosis"):
+
+1. Screening by inverse dynamics (:mod:`tracker.workbench.screening`, ``effect_search``):
+   for each missing effect, the torque balance is refitted with its terms added (searching its
+   nonlinear parameter) and scored on held-out time blocks; an F-test on the effective sample
+   size of the time-correlated residual says whether the gain is beyond chance.
+2. Judgement by simulation (:mod:`tracker.workbench.kstep`): each candidate model, with the
+   screening's parameters, predicts k steps ahead from the measured states; a paired test over
+   blocks of windows against the current structure (refitted) says whether it predicts better.
+   The verdict candidate is then refitted on the k-step error for its final parameters.
+
+An effect is *significant* only when both stages agree and the gains are of a size that
+matters (not merely detectable). A model that is already right gets no verdict.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from tracker.errors import JobCancelled
+from tracker.plant.effects import OPTIONAL_EFFECTS
+from tracker.plant.model import AxisModel
+from tracker.workbench.breakaway import analyse_breakaway
+from tracker.workbench.data import Measurement
+from tracker.workbench.effect_search import screen_missing_effects
+from tracker.workbench.evidence import EvidenceContext, describe, experiment_for, notes_for
+from tracker.workbench.idim import prepare_signals
+from tracker.workbench.kstep import KStepJudge, refine
+from tracker.workbench.screening import Screen, Structure, TorqueDesign, model_params
+
+# A candidate must explain this share of the held-out residual torque (screening) ...
+MIN_SCREEN_GAIN = 0.08
+MAX_SCREEN_P = 1e-6
+# ... and cut the k-step prediction error by this share, consistently over blocks of windows.
+MIN_KSTEP_GAIN = 0.05
+MIN_KSTEP_T = 2.0
+# Stiction is judged on its break-away excess when the moving data cannot see it.
+MIN_BREAKAWAY_T = 4.0
+REFINE_TOP = 1
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """One effect the model might be missing.
+
+    ``fit_percent`` is the k-step fit the model reaches with it added and refitted; ``params``
+    its parameters (``"<effect>.<param>"``, SI) and ``stderr`` their standard errors;
+    ``confused_with`` effects that explain the same residual; ``experiment`` what to run to
+    confirm it or tell it from those.
+    """
+
+    effect: str
+    fit_percent: float
+    params: Mapping[str, float]
+    stderr: Mapping[str, float]
+    significant: bool
+    evidence: str
+    confused_with: tuple[str, ...] = ()
+    experiment: str | None = None
+    screen_gain: float = 0.0
+    kstep_gain: float = 0.0
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "effect": self.effect,
+            "fit_percent": self.fit_percent,
+            "params": dict(self.params),
+            "stderr": dict(self.stderr),
+            "significant": self.significant,
+            "evidence": self.evidence,
+            "confused_with": list(self.confused_with),
+            "experiment": self.experiment,
+            "screen_gain": self.screen_gain,
+            "kstep_gain": self.kstep_gain,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class Diagnosis:
+    """The current model's fit, the verdict (or None) and every candidate, best first."""
+
+    fit_percent: float
+    verdict: str | None
+    candidates: tuple[Candidate, ...]
+    notes: tuple[str, ...] = ()
+    elapsed_s: float = 0.0
+    baseline_params: Mapping[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, object]:
+        """The CLI contract: fit_percent, verdict, candidates (best first), plus notes."""
+        return {
+            "fit_percent": self.fit_percent,
+            "verdict": self.verdict,
+            "candidates": [c.to_dict() for c in self.candidates],
+            "notes": list(self.notes),
+            "elapsed_s": self.elapsed_s,
+        }
+
+    def candidate(self, effect: str) -> Candidate:
+        """The candidate for ``effect`` (KeyError if the model already has it)."""
+        for c in self.candidates:
+            if c.effect == effect:
+                return c
+        raise KeyError(effect)
+
+
+def with_values(model: AxisModel, values: Mapping[str, float], add: str | None = None) -> AxisModel:
+    """``model`` (plus effect ``add``) with ``values`` set, keeping every other value.
+
+    (``AxisModel.with_effect`` would reset an existing asymmetry to symmetric.)
+    """
+    effects = (*model.effects, add) if add and not model.has(add) else model.effects
+    keep = {k: v for k, v in model.params.items()}
+    keep.update({k: v for k, v in values.items() if k.split(".")[0] in (*effects, "inertia", "viscous", "coulomb")})
+    return AxisModel.create(model.gain_nm_per_v, {}, effects, keep)
+
+
+def _candidate_model(model: AxisModel, scr: Screen, ctx: EvidenceContext) -> AxisModel:
+    values = dict(scr.params)
+    if scr.effect == "stiction" and ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T:
+        values["stiction.static_torque"] = max(values["stiction.static_torque"],
+                                               values["coulomb.torque"] + ctx.breakaway.static_excess_nm)
+    return with_values(model, values, add=scr.effect)
+
+
+def diagnose(
+    meas: Measurement,
+    model: AxisModel,
+    horizon_s: float | None = None,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Diagnosis:
+    """Rank the effects ``model`` lacks by how much of ``meas`` they explain; give a verdict.
+
+    Parameters
+    ----------
+    meas : measured log (t s, u V, θ rad).
+    model : the current model (base plus the effects it already has).
+    horizon_s : k-step prediction horizon (default 0.05 s, as ``compare``).
+    progress : called with the fraction done (0..1).
+    cancel : polled; returning True raises :class:`JobCancelled`.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    t0 = time.perf_counter()
+
+    def step(frac: float) -> None:
+        if cancel is not None and cancel():
+            raise JobCancelled("diagnosis cancelled")
+        if progress is not None:
+            progress(frac)
+
+    step(0.0)
+    sig = prepare_signals(meas)
+    design = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"])
+    base = Structure.of(model)
+    base_reg = design.fit(base)
+    base_values, _ = model_params(model, base, base_reg)
+    step(0.1)
+    screens = screen_missing_effects(design, model, base, base_reg, cancel)
+    step(0.5)
+
+    judge = KStepJudge(meas, sig, horizon_s)
+    current = judge.score(model)
+    refit = with_values(model, base_values)
+    refit_score = judge.score(refit)
+    base_model, base_score = (refit, refit_score) if refit_score.sse < current.sse else (model, current)
+    ctx = EvidenceContext(sig, design, base_reg, analyse_breakaway(meas, base_model), model)
+
+    rows = []
+    for effect, scr in screens.items():
+        cand_model = _candidate_model(base_model, scr, ctx)
+        score = judge.score(cand_model)
+        cmp = judge.compare(base_score, score)
+        screen_ok = scr.gain_cv >= MIN_SCREEN_GAIN and scr.p_value <= MAX_SCREEN_P and scr.folds_improve
+        if effect == "stiction" and ctx.breakaway is not None:
+            screen_ok = screen_ok or ctx.breakaway.static_t > MIN_BREAKAWAY_T
+        sig_ok = screen_ok and cmp.improvement >= MIN_KSTEP_GAIN and cmp.t_stat >= MIN_KSTEP_T
+        rows.append([effect, scr, cand_model, score, cmp, sig_ok])
+    step(0.7)
+    # Best first: significant ones by k-step gain, then the rest by the same.
+    rows.sort(key=lambda r: (not r[5], -r[4].improvement))
+    # Ties between equivalent effects (a bias torque and direction-dependent Coulomb friction are
+    # the same equation while moving): prefer the bias torque, the simpler physical story.
+    _prefer_offset(rows)
+
+    significant = [r for r in rows if r[5]]
+    for r in significant[:REFINE_TOP]:
+        step(0.7 + 0.1 * significant.index(r))
+        refined = refine(judge, r[2], cancel=cancel)
+        score = judge.score(refined)
+        if score.sse < r[3].sse:
+            r[2], r[3], r[4] = refined, score, judge.compare(base_score, score)
+
+    candidates = []
+    for effect, scr, cand_model, score, cmp, sig_ok in rows:
+        params = {k: v for k, v in cand_model.params.items() if k.split(".")[0] == effect}
+        stderr = {k: v for k, v in scr.stderr.items() if k.split(".")[0] == effect}
+        candidates.append(
+            Candidate(
+                effect=effect,
+                fit_percent=score.fit_percent,
+                params=params,
+                stderr=stderr,
+                significant=sig_ok,
+                evidence=describe(effect, scr, cmp, ctx),
+                confused_with=ctx.confusions(effect, [r[0] for r in rows if r[5]]),
+                experiment=experiment_for(effect),
+                screen_gain=scr.gain_cv,
+                kstep_gain=cmp.improvement,
+            )
+        )
+    if "quantization" in OPTIONAL_EFFECTS and not model.has("quantization"):
+        candidates.append(_quantization_candidate(ctx, current.fit_percent, judge, base_score))
+    verdict = candidates[0].effect if candidates and candidates[0].significant else None
+    notes = notes_for(candidates, ctx, verdict)
+    step(1.0)
+    return Diagnosis(current.fit_percent, verdict, tuple(candidates), notes, time.perf_counter() - t0,
+                     dict(base_model.params))
+
+
+def _prefer_offset(rows: list[list[object]]) -> None:
+    names = [r[0] for r in rows]
+    if "offset" in names and "coulomb_asymmetry" in names:
+        i, j = names.index("coulomb_asymmetry"), names.index("offset")
+        if i < j and rows[i][5] == rows[j][5]:
+            gi, gj = rows[i][4].improvement, rows[j][4].improvement  # type: ignore[attr-defined]
+            if gj >= gi - 0.02 * max(abs(gi), 1e-9) - 0.01:
+                rows[i], rows[j] = rows[j], rows[i]
+
+
+def _quantization_candidate(ctx: EvidenceContext, fit: float, judge: KStepJudge, base_score: object) -> Candidate:
+    q = ctx.sig.encoder_step_rad
+    rms = float((base_score.end_error ** 2).mean() ** 0.5)  # type: ignore[attr-defined]
+    floor = q / 12**0.5
+    if q > 0:
+        ev = (f"encoder step {q:.3g} rad in the data; k-step error RMS {rms:.3g} rad is "
+              f"{rms / floor:.1f}× the quantization floor step/√12 = {floor:.3g} rad "
+              "(a sensor effect: it changes no prediction, so adding it cannot improve the fit)")
+    else:
+        ev = "no encoder step found in the data (unquantized or noisy sensor)"
+    return Candidate("quantization", fit, {"quantization.step": q} if q > 0 else {}, {}, False, ev, (),
+                     None)
+
+
+__all__ = ["Candidate", "Diagnosis", "diagnose", "with_values"]

@@ -1,0 +1,229 @@
+"""The diagnosis in words: evidence with numbers, look-alike effects and the experiments that split them."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy import signal
+
+from tracker.plant.model import AxisModel
+from tracker.workbench.breakaway import BreakAway
+from tracker.workbench.idim import Regression, Signals
+from tracker.workbench.kstep import Comparison
+from tracker.workbench.screening import Screen, TorqueDesign
+
+if TYPE_CHECKING:
+    from tracker.workbench.diagnose import Candidate
+
+# Effects that explain the same residual on ordinary closed-loop data.
+LOOK_ALIKES: dict[str, tuple[str, ...]] = {
+    "offset": ("coulomb_asymmetry", "gravity"),
+    "coulomb_asymmetry": ("offset",),
+    "viscous_asymmetry": ("coulomb_asymmetry", "offset"),
+    "gravity": ("offset", "ripple"),
+    "ripple": ("gravity",),
+    "stiction": ("delay", "backlash"),
+    "delay": ("stiction", "compliance"),
+    "backlash": ("stiction", "compliance"),
+    "compliance": ("backlash", "delay"),
+    "saturation": (),
+}
+
+EXPERIMENTS: dict[str, str] = {
+    "offset": (
+        "repeat the friction-ID sweep (tracker friction-id) at a different position or with the "
+        "load rebalanced: a bias torque (cable, unbalance) changes with them, friction does not"
+    ),
+    "coulomb_asymmetry": (
+        "friction-ID sweep (tracker friction-id): per-direction Coulomb intercepts; repeat it at "
+        "another position to tell direction-dependent friction from a bias torque"
+    ),
+    "viscous_asymmetry": "friction-ID sweep (tracker friction-id): compare the slopes of the two directions",
+    "gravity": "slow constant-speed moves over the widest angle range: the holding torque follows sin θ",
+    "ripple": "a slow constant-speed move over a full revolution (or the widest range): torque ripple vs θ",
+    "stiction": (
+        "friction-ID sweep (tracker friction-id): break-away voltage on a slow ramp above the "
+        "Coulomb intercept shows stiction (a delay does not change it)"
+    ),
+    "delay": (
+        "small fast steps or a chirp while moving: the lag of the response to the command; the "
+        "constant-voltage sweep does not show a delay"
+    ),
+    "saturation": "constant-voltage steps above the suspected limit: the acceleration stops growing with u",
+    "backlash": "slow triangle moves with a load-side sensor (or a camera on a target): lost motion at each reversal",
+    "compliance": "a chirp or small steps at 5–100 Hz: a resonance peak in the encoder's frequency response",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class EvidenceContext:
+    """What every evidence sentence draws on: the prepared run and the baseline regression."""
+
+    sig: Signals
+    design: TorqueDesign
+    base_reg: Regression
+    breakaway: BreakAway | None
+    model: AxisModel
+
+    def confusions(self, effect: str, significant: Sequence[str]) -> tuple[str, ...]:
+        """Look-alike effects of ``effect`` (those also significant first)."""
+        alike = LOOK_ALIKES.get(effect, ())
+        return tuple(sorted(alike, key=lambda e: e not in significant))
+
+    def concentration(self, mask_full: np.ndarray) -> tuple[float, float]:
+        """(share of baseline residual energy, share of time) where ``mask_full`` holds."""
+        r = self.base_reg.residual
+        m = mask_full[self.sig.use]
+        tot = float(r @ r) or 1.0
+        return float(np.sum(r[m] ** 2) / tot), float(np.mean(m))
+
+
+def _mnm(x: float) -> str:
+    return f"{1e3 * x:+.1f} mN·m"
+
+
+def _direction_means(ctx: EvidenceContext) -> tuple[float, float, float]:
+    r = ctx.base_reg.residual
+    om = ctx.sig.omega_rad_s[ctx.sig.use]
+    pos, neg = r[om > 0], r[om < 0]
+    se = float(np.std(r)) * math.sqrt(2.0 / max(ctx.base_reg.n_eff, 2.0))
+    return float(pos.mean()) if pos.size else 0.0, float(neg.mean()) if neg.size else 0.0, se
+
+
+def _resonance(ctx: EvidenceContext) -> tuple[float, float]:
+    """(peak frequency Hz, peak/median ratio) of the baseline residual torque spectrum."""
+    sig = ctx.sig
+    step = int(np.median(np.diff(sig.use))) or 1
+    r = np.zeros(sig.t_s.size)
+    r[sig.use] = ctx.base_reg.residual
+    x = r[::step]
+    fs = 1.0 / (sig.dt_s * step)
+    f, p = signal.welch(x, fs=fs, nperseg=min(512, x.size))
+    band = (f > 1.0) & (f < min(2 * sig.cutoff_hz, 0.45 * fs))
+    if not band.any():
+        return 0.0, 0.0
+    i = int(np.argmax(p[band]))
+    return float(f[band][i]), float(p[band][i] / (np.median(p[band]) or 1.0))
+
+
+def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext) -> str:
+    """One sentence of evidence with numbers for ``effect``."""
+    p, d = scr.params, scr.detail
+    sig = ctx.sig
+    om = sig.omega_rad_s
+    tail = (f"; explains {100 * scr.gain_cv:.0f} % of the held-out residual torque, "
+            f"k-step error {-100 * cmp.improvement:+.0f} % (t = {cmp.t_stat:.1f})")
+    if effect in ("offset", "coulomb_asymmetry"):
+        mp, mn, se = _direction_means(ctx)
+        same = (mp > 0) == (mn > 0)
+        kind = "the same sign both ways: a bias torque" if same else "opposite signs: direction-dependent"
+        head = (f"residual torque averages {_mnm(mp)} moving positive and {_mnm(mn)} moving negative "
+                f"(±{1e3 * se:.1f}), {kind}")
+        if effect == "offset":
+            head += f"; bias {_mnm(p['offset.torque'])}"
+        else:
+            head += (f"; Coulomb {1e3 * p['coulomb.torque']:.1f} mN·m positive, "
+                     f"{1e3 * p['coulomb_asymmetry.negative']:.1f} mN·m negative")
+        return head + tail
+    if effect == "viscous_asymmetry":
+        return (f"residual torque grows with speed differently by direction: viscous "
+                f"{p['viscous.b']:.3g} N·m·s/rad positive, {p['viscous_asymmetry.negative']:.3g} negative" + tail)
+    if effect == "gravity":
+        th = sig.theta_rad[sig.use]
+        g = p["gravity.torque"] * np.sin(th + p["gravity.phase"])
+        r = ctx.base_reg.residual
+        rr = float(np.corrcoef(r, g)[0, 1]) if np.std(g) > 0 and np.std(r) > 0 else 0.0
+        return (f"residual torque follows sin(θ {p['gravity.phase']:+.2f} rad) (r = {rr:.2f}), "
+                f"amplitude {1e3 * p['gravity.torque']:.1f} mN·m over a {np.ptp(th):.2f} rad range" + tail)
+    if effect == "ripple":
+        return (f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.0f} cycles per revolution "
+                f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
+                f"{1e3 * p['ripple.amplitude']:.1f} mN·m" + tail)
+    if effect == "stiction":
+        low = np.abs(om) < max(3 * p.get("stiction.velocity", 0.05), 1e-3)
+        e, tfrac = ctx.concentration(low)
+        ba = ctx.breakaway
+        extra = ""
+        if ba is not None:
+            extra = (f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {1e3 * ba.static_excess_se:.1f} "
+                     f"over Coulomb in {ba.count} starts")
+        return (f"error concentrates at low speed ({100 * e:.0f} % of the residual torque in "
+                f"{100 * tfrac:.0f} % of the moving time){extra}; break-away "
+                f"{1e3 * p['stiction.static_torque']:.1f} mN·m, Stribeck velocity {p['stiction.velocity']:.3g} rad/s" + tail)
+    if effect == "delay":
+        ba = ctx.breakaway
+        extra = ""
+        if ba is not None and math.isfinite(ba.delay_se):
+            extra = f"; break-away lags the command by {1e3 * ba.delay_s:.1f} ± {1e3 * ba.delay_se:.1f} ms"
+        return (f"input–residual alignment is best with the command delayed by "
+                f"{1e3 * p['delay.seconds']:.1f} ms{extra}" + tail)
+    if effect == "saturation":
+        lim = p["saturation.limit"]
+        e, tfrac = ctx.concentration(np.abs(sig.u_v) > lim)
+        return (f"error appears when |u| > {lim:.2f} V ({100 * e:.0f} % of the residual torque in "
+                f"{100 * tfrac:.0f} % of the time)" + tail)
+    if effect == "backlash":
+        rev = np.abs(sig.alpha_rad_s2) < 0.1 * float(np.std(sig.alpha_rad_s2))
+        e, tfrac = ctx.concentration(rev)
+        return (f"the encoder moves through a dead band of {p['backlash.width']:.3g} rad when the torque "
+                f"reverses, with reduced inertia ({100 * e:.0f} % of the residual torque in {100 * tfrac:.0f} % "
+                "of the time, near acceleration reversals)" + tail)
+    if effect == "compliance":
+        f, ratio = _resonance(ctx)
+        return (f"residual torque spectrum peaks at {f:.1f} Hz ({ratio:.0f}× the median); belt resonance "
+                f"{p['compliance.frequency']:.1f} Hz, damping {p['compliance.damping']:.2f}" + tail)
+    return "no evidence computed" + tail
+
+
+def experiment_for(effect: str) -> str | None:
+    """The experiment that confirms ``effect`` or tells it from its look-alikes."""
+    return EXPERIMENTS.get(effect)
+
+
+def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: str | None) -> tuple[str, ...]:
+    """Ambiguities between significant candidates and the experiments that would resolve them."""
+    sig_names = [c.effect for c in candidates if c.significant]
+    by = {c.effect: c for c in candidates}
+    notes: list[str] = []
+    if verdict is None:
+        notes.append("no effect explains a significant share of the residual: the model structure is "
+                     "adequate for this data (refit its parameters with `tracker model fit` if needed)")
+    if "offset" in by and "coulomb_asymmetry" in by and ({"offset", "coulomb_asymmetry"} & set(sig_names)):
+        mp, mn, _ = _direction_means(ctx)
+        notes.append(
+            "offset and coulomb_asymmetry explain the same residual: on a rigid axis with Coulomb friction a "
+            "bias torque o is direction-dependent friction with Fc⁺ = Fc + o, Fc⁻ = Fc − o "
+            f"(residual torque {_mnm(mp)} moving positive, {_mnm(mn)} negative). Named here as a bias torque. "
+            "To tell them apart: " + EXPERIMENTS["offset"]
+        )
+    if "viscous_asymmetry" in sig_names and ({"offset", "coulomb_asymmetry"} & set(sig_names)):
+        notes.append("direction-dependent viscous friction competes with a bias torque: the one with the larger "
+                     "k-step gain is ranked first; diagnose again after adding it to see whether the other remains")
+    if {"stiction", "delay"} & set(sig_names):
+        ba = ctx.breakaway
+        if ba is not None:
+            notes.append(
+                f"stiction and delay both live at reversals; {ba.count} starts from rest give a break-away excess "
+                f"of {_mnm(ba.static_excess_nm)} ± {1e3 * ba.static_excess_se:.1f} at zero command rate (stiction) "
+                f"and a lag of {1e3 * ba.delay_s:.1f} ± {1e3 * ba.delay_se:.1f} ms (delay). To be sure: "
+                + EXPERIMENTS["stiction"]
+            )
+        else:
+            notes.append("stiction and delay both live at reversals and this run has too few starts from rest to "
+                         "separate them: " + EXPERIMENTS["stiction"])
+    if {"backlash", "compliance"} <= set(sig_names):
+        notes.append("backlash and compliance both hide a load state; " + EXPERIMENTS["compliance"])
+    if {"gravity", "offset"} <= set(sig_names) and float(np.ptp(ctx.sig.theta_rad)) < 1.5:
+        notes.append(f"gravity and a bias torque look alike over the {np.ptp(ctx.sig.theta_rad):.2f} rad this run "
+                     "covers; " + EXPERIMENTS["gravity"])
+    others = [e for e in sig_names if e != verdict]
+    if verdict is not None and others:
+        notes.append(f"also significant: {', '.join(others)}; add {verdict}, refit, and diagnose again")
+    return tuple(notes)
+
+
+__all__ = ["EXPERIMENTS", "LOOK_ALIKES", "EvidenceContext", "describe", "experiment_for", "notes_for"]
