@@ -4,8 +4,9 @@ The inverse-dynamics screening proposes; the simulator decides. Every candidate 
 from the estimated state at many window starts over the prediction horizon with the measured
 command, and its errors are compared window by window with the current model's (a paired
 test over blocks of windows, so time-correlated errors are not counted as independent).
-Hidden load states (backlash, compliance) start from the fit engineer's model-based load
-observer (:func:`tracker.workbench.states.observe_load`) driven by the smoothed motor angle.
+Hidden load states (backlash, compliance) start from a model-based load observer: the load's
+equation of motion integrated along the smoothed motor trajectory (the belt/contact is damped,
+so it forgets its unknown start within a few periods).
 """
 
 from __future__ import annotations
@@ -15,19 +16,56 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import optimize
 
 from tracker.errors import JobCancelled
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import STATE_SIZE, predict_windows
+from tracker.plant.simulate import I_BW, I_CC, I_CK, I_GPH, I_GT, I_JL, I_NSUB, I_TWO, STATE_SIZE, pack_params, predict_windows
 from tracker.workbench.data import Measurement
 from tracker.workbench.idim import Signals
-from tracker.workbench.states import observe_load
 
 FloatArray = NDArray[np.float64]
 DEFAULT_HORIZON_S = 0.05
+
+
+@njit(cache=True)
+def _load_observer(P: FloatArray, th_m: FloatArray, om_m: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
+    """Integrate the load side (belt spring with dead band, gravity) driven by the motor."""
+    n = th_m.shape[0]
+    n_sub = int(P[I_NSUB])
+    h = dt / n_sub
+    half = 0.5 * P[I_BW]
+    th_l = np.empty(n)
+    om_l = np.empty(n)
+    xl, vl = th_m[0], om_m[0]
+    for k in range(n):
+        th_l[k] = xl
+        om_l[k] = vl
+        if k == n - 1:
+            break
+        for i in range(n_sub):
+            a = i / n_sub
+            xm = th_m[k] + a * (th_m[k + 1] - th_m[k])
+            vm = om_m[k] + a * (om_m[k + 1] - om_m[k])
+            delta = xm - xl
+            dz = delta - half if delta > half else (delta + half if delta < -half else 0.0)
+            tau_c = P[I_CK] * dz
+            if dz != 0.0:
+                tau_c += P[I_CC] * (vm - vl)
+            vl += h * (tau_c - P[I_GT] * math.sin(xl + P[I_GPH])) / P[I_JL]
+            xl += h * vl
+    return th_l, om_l
+
+
+def observe_load(model: AxisModel, theta_m_rad: FloatArray, omega_m_rad_s: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
+    """Load angle and velocity (shape (n,) each) of a two-mass ``model`` driven by the motor."""
+    P = pack_params(model, dt_s, quantize=False)
+    if P[I_TWO] == 0.0:
+        return theta_m_rad.copy(), omega_m_rad_s.copy()
+    return _load_observer(P, np.ascontiguousarray(theta_m_rad), np.ascontiguousarray(omega_m_rad_s), float(dt_s))
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,4 +192,4 @@ def refine(
     return model.with_params(wrap(sol.x * scale))
 
 
-__all__ = ["DEFAULT_HORIZON_S", "Comparison", "KStepJudge", "KStepScore", "refine"]
+__all__ = ["DEFAULT_HORIZON_S", "Comparison", "KStepJudge", "KStepScore", "observe_load", "refine"]
