@@ -203,7 +203,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     sub = p.add_subparsers(dest="model_command", metavar="SUBCOMMAND")
     sub.required = True
 
-    c = sub.add_parser("compare", help="set a model against a measurement (fit %, RMS, error by regime)")
+    c = sub.add_parser("compare", help="set a model against a measurement (fit %%, RMS, error by regime)")
     _add_common(c)
     c.add_argument("--mode", choices=("k_step", "free"), default="k_step", help="k-step-ahead prediction or free simulation")
     c.set_defaults(func=run_compare)
