@@ -25,14 +25,18 @@ class RoomSettings:
     snr_db : speech-to-noise ratio at the mics over active speech; noise is independent white
         noise per mic (self-noise and diffuse room noise).
     fs_hz : sample rate.
-    max_order : cap on image-source order (speed); None uses Sabine's estimate.
+    ism_order : image-source order. The image sources are exact but their number grows with
+        the cube of the order (Sabine's order for RT60 0.4 s here is 53: 0.3 s per source);
+        order 10 renders the first ~80 ms exactly, after which a diffuse late tail
+        (:func:`late_tail`) with the right decay and inter-mic coherence takes over.
+        None renders the whole response with image sources (slow, for checks).
     """
 
     size_m: tuple[float, float, float] = (6.0, 5.0, 3.0)
     rt60_s: float = 0.4
     snr_db: float = 10.0
     fs_hz: int = 16000
-    max_order: int | None = None
+    ism_order: int | None = 10
 
     def __post_init__(self) -> None:
         if not 0.05 <= self.rt60_s <= 1.5:
@@ -163,8 +167,8 @@ def simulate(
 
     A walking talker is rendered as a sequence of ``segment_s`` pieces, each convolved with
     the room response at its position and cross-faded (50 % overlapping Hann windows), so the
-    image-source model can represent movement. All room responses come from one
-    ``compute_rir`` call.
+    image-source model can represent movement; silent pieces are skipped and positions
+    (rounded to 1 cm) share one response. All responses come from one ``compute_rir`` call.
 
     Returns
     -------
@@ -178,45 +182,102 @@ def simulate(
     if np.any(mics_room < 0.01) or np.any(mics_room > size - 0.01):
         raise ConfigError("array lies outside the room")
     absorption, max_order = pra.inverse_sabine(settings.rt60_s, list(settings.size_m))
-    if settings.max_order is not None:
-        max_order = min(max_order, settings.max_order)
+    hybrid = settings.ism_order is not None and settings.ism_order < max_order
+    if hybrid:
+        max_order = settings.ism_order
     room = pra.ShoeBox(list(settings.size_m), fs=fs, materials=pra.Material(absorption),
                        max_order=max_order)
     room.add_microphone_array(mics_room.T)
     n_samples = max(t.samples.size for t in talkers)
     hop = int(round(segment_s * fs))
-    plan: list[tuple[int, int]] = []  # (talker, segment start sample); -1 start = whole signal
-    for k, talker in enumerate(talkers):
-        if talker.moves:
-            starts = np.arange(-hop, talker.samples.size, hop)
-            centres = (starts + hop) / fs
-            for start, position in zip(starts, talker.position_at(centres), strict=True):
-                room.add_source(np.clip(position, 0.05, size - 0.05))
-                plan.append((k, int(start)))
-        else:
-            room.add_source(np.clip(talker.path_m[0], 0.05, size - 0.05))
-            plan.append((k, -1))
-    room.compute_rir()
-    rir_len = max(len(room.rir[m][s]) for m in range(array.n_mics) for s in range(len(plan)))
-    audio = np.zeros((array.n_mics, n_samples + rir_len))
     fade = np.hanning(2 * hop + 1)[:-1]  # overlapping halves sum to one
-    for source, (k, start) in enumerate(plan):
-        samples = talkers[k].samples
-        if start < 0:
-            piece, offset = samples, 0
-        else:
-            lo, hi = max(start, 0), min(start + 2 * hop, samples.size)
-            if hi <= lo:
-                continue
-            piece, offset = samples[lo:hi] * fade[lo - start : hi - start], lo
-        if not np.any(piece):
+    sources: dict[tuple[float, ...], int] = {}
+    pieces: list[tuple[int, int, FloatArray]] = []  # (source, offset, samples)
+
+    def source_at(position: FloatArray) -> int:
+        key = tuple(np.round(np.clip(position, 0.05, size - 0.05), 2))
+        if key not in sources:
+            sources[key] = len(sources)
+            room.add_source(np.array(key))
+        return sources[key]
+
+    for talker in talkers:
+        if not talker.moves:
+            pieces.append((source_at(talker.path_m[0]), 0, talker.samples))
             continue
+        samples = talker.samples
+        for start in range(-hop, samples.size, hop):
+            lo, hi = max(start, 0), min(start + 2 * hop, samples.size)
+            piece = samples[lo:hi] * fade[lo - start : hi - start]
+            if hi > lo and np.any(piece):  # silent stretches need no room response
+                position = talker.position_at(np.array([(start + hop) / fs]))[0]
+                pieces.append((source_at(position), lo, piece))
+    room.compute_rir()
+    rng = np.random.default_rng(seed + 7919)
+    rirs = [np.array([room.rir[m][k] for m in range(array.n_mics)], dtype=object)
+            for k in range(len(sources))]
+    if hybrid:
+        rirs = [with_late_tail(list(r), mics_room, settings, rng) for r in rirs]
+    rir_len = max(len(r[m]) for r in rirs for m in range(array.n_mics))
+    audio = np.zeros((array.n_mics, n_samples + rir_len))
+    for source, offset, piece in pieces:
         for m in range(array.n_mics):
-            out = signal.oaconvolve(piece, room.rir[m][source])
+            out = signal.oaconvolve(piece, rirs[source][m])
             audio[m, offset : offset + out.size] += out
     audio = audio[:, :n_samples]
     audio = _add_noise(audio, talkers, settings.snr_db, np.random.default_rng(seed))
     return Recording(audio, fs, tuple(talkers), placement, settings)
+
+
+def late_tail(mics_m: FloatArray, n_samples: int, fs_hz: int, rng: np.random.Generator,
+              n_waves: int = 48) -> FloatArray:
+    """Diffuse noise at the mics: white noise arriving from ``n_waves`` random directions.
+
+    Sums of plane waves from directions spread over the sphere give the inter-mic coherence
+    of a diffuse field (sinc(2 pi f d / c)), which independent noise per mic would not.
+
+    Returns
+    -------
+    ndarray, shape (n_mics, n_samples), unit power per mic
+    """
+    from tracker.units import SPEED_OF_SOUND_M_PER_S
+
+    directions = rng.standard_normal((n_waves, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    n_fft = n_samples + 64
+    freqs = np.fft.rfftfreq(n_fft, 1.0 / fs_hz)
+    spectra = np.fft.rfft(rng.standard_normal((n_waves, n_fft)), axis=1)  # (K, F)
+    advance_s = directions @ (mics_m - mics_m.mean(axis=0)).T / SPEED_OF_SOUND_M_PER_S  # (K, M)
+    phase = np.exp(2j * np.pi * advance_s[:, :, None] * freqs[None, None, :])
+    tail = np.fft.irfft(np.einsum("kf,kmf->mf", spectra, phase), n_fft, axis=1)[:, 32:32 + n_samples]
+    return np.asarray(tail / np.sqrt(np.mean(tail**2)))
+
+
+def with_late_tail(rirs: list[FloatArray], mics_m: FloatArray, settings: RoomSettings,
+                   rng: np.random.Generator, mix_after_s: float = 0.06, fade_s: float = 0.02
+                   ) -> list[FloatArray]:
+    """Replace the truncated image-source tail by a diffuse exponential decay.
+
+    From ``mix_after_s`` after the direct sound the responses cross-fade (over ``fade_s``)
+    into :func:`late_tail` shaped by ``exp(-6.91 t / RT60)`` (60 dB of energy in RT60), its
+    level matched to the image-source energy in the 20 ms before the mix point.
+    """
+    fs = settings.fs_hz
+    length = max(len(r) for r in rirs)
+    direct = min(int(np.argmax(np.abs(r))) for r in rirs)
+    mix = direct + int(mix_after_s * fs)
+    fade = int(fade_s * fs)
+    total = max(length, mix + fade + int(1.2 * settings.rt60_s * fs))
+    padded = np.zeros((len(rirs), total))
+    for m, r in enumerate(rirs):
+        padded[m, : len(r)] = r
+    t = (np.arange(total) - mix) / fs
+    decay = np.exp(-6.91 * t / settings.rt60_s)
+    ref = slice(max(direct + 1, mix - int(0.02 * fs)), mix)
+    level = np.sqrt(np.mean(padded[:, ref] ** 2) / np.mean(decay[ref] ** 2))
+    tail = late_tail(mics_m, total, fs, rng) * decay * level
+    ramp = np.clip((np.arange(total) - mix) / max(fade, 1), 0.0, 1.0)
+    return list(padded * (1.0 - ramp) + tail * ramp)
 
 
 def _add_noise(audio: FloatArray, talkers: list[Talker] | tuple[Talker, ...], snr_db: float,

@@ -3,6 +3,9 @@
 Frames (direction estimates flagged as speech or not) go in one at a time, in time order; each
 returns the direction the camera should point at. The policy imitates a good operator:
 
+* only the more confident half of the speech frames count (confidence above the running
+  ``confidence_quantile`` of the last ``confidence_window_s``): in a reverberant room the
+  low-confidence windows are the ones dominated by reflections;
 * a direction must persist for ``reaction_time_s`` before the camera goes there (a single
   wrong estimate, a cough or a reflection does not move it);
 * after a switch the camera stays at least ``min_hold_s`` unless the floor was silent for
@@ -34,6 +37,8 @@ class TrackerSettings:
     """Talker tracker and switching policy; every field adjustable, defaults for a meeting room."""
 
     min_confidence: float = 0.05
+    confidence_quantile: float = 0.5
+    confidence_window_s: float = 10.0
     measurement_std_rad: float = float(np.deg2rad(3.0))
     accel_std_rad_s2: float = float(np.deg2rad(40.0))
     gate_rad: float = float(np.deg2rad(12.0))
@@ -56,6 +61,8 @@ class TrackerSettings:
                 raise ConfigError(f"tracker setting {name}={value} must be a finite value >= 0")
         if self.deadband_rad < 0 or self.deadband_rad > np.deg2rad(30):
             raise ConfigError(f"deadband_rad={self.deadband_rad} outside 0-30°")
+        if not 0.0 <= self.confidence_quantile < 1.0:
+            raise ConfigError(f"confidence_quantile={self.confidence_quantile} must be in [0, 1)")
         if not 0.0 < self.candidate_share <= 1.0:
             raise ConfigError(f"candidate_share={self.candidate_share} must be in (0, 1]")
         if self.wide_after_switches < 2:
@@ -139,17 +146,30 @@ class TalkerTracker:
     _following: bool = False
     _switches: list[tuple[float, float, float]] = field(default_factory=list)
     _wide_rad: float | None = None
+    _confidences: list[tuple[float, float]] = field(default_factory=list)
 
     def step(self, t_s: float, azimuth_rad: float, elevation_rad: float | None,
              confidence: float, speech: bool) -> TrackPoint:
         """Take one frame (time order) and return the camera target after it."""
         s = self.settings
         usable = speech and confidence >= s.min_confidence and np.isfinite(azimuth_rad)
+        if usable and s.confidence_quantile > 0.0:
+            usable = self._confident(t_s, confidence)
         if usable:
             floor_was_open = t_s - self._last_speech_t_s > s.pause_tolerance_s
             self._observe(t_s, _wrap(azimuth_rad), elevation_rad, floor_was_open)
             self._last_speech_t_s = t_s
         return self._target(t_s)
+
+    def _confident(self, t_s: float, confidence: float) -> bool:
+        """Keep frames above the running quantile of recent speech-frame confidences."""
+        horizon = t_s - self.settings.confidence_window_s
+        self._confidences = [(t, c) for t, c in self._confidences if t >= horizon]
+        self._confidences.append((t_s, confidence))
+        if len(self._confidences) < 5:
+            return True
+        level = np.quantile([c for _, c in self._confidences], self.settings.confidence_quantile)
+        return bool(confidence >= level)
 
     # -- talker evidence -------------------------------------------------------------------
 
@@ -162,8 +182,9 @@ class TalkerTracker:
             before = (self._talker.x.copy(), self._talker.p.copy(), self._talker.t_s)
             self._talker.predict(t_s, s.accel_std_rad_s2)
             # The gate widens with the track's uncertainty, but never enough to swallow a
-            # neighbour: at most twice the nominal gate.
-            gate = float(np.clip(3.0 * np.sqrt(self._talker.p[0, 0]), s.gate_rad, 2 * s.gate_rad))
+            # neighbour: at most 1.5 times the nominal gate.
+            spread = 3.0 * np.sqrt(self._talker.p[0, 0] + s.measurement_std_rad**2)
+            gate = float(np.clip(spread, s.gate_rad, 1.5 * s.gate_rad))
             if abs(self._talker.innovation(z)) <= gate:
                 self._talker.update(z, s.measurement_std_rad**2)
                 self._update_elevation(elevation_rad)
