@@ -34,6 +34,7 @@ async function signIn(key, remember) {
   $("session").hidden = false;
   document.body.dataset.role = me.role;
   for (const b of document.querySelectorAll("#tabs button[data-role]")) b.hidden = !session.can(b.dataset.role);
+  if (!started.has("live")) { started.add("live"); live.init(session); }  // telemetry runs on every page
   const wanted = location.hash.slice(1);
   showTab(pages[wanted] && !document.querySelector(`#tabs button[data-tab=${wanted}]`)?.hidden ? wanted : "live");
 }

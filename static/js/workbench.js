@@ -10,7 +10,7 @@ let busy = false;
 
 export function init(s) {
   session = s;
-  makeChart($("plot-overlay"), { height: 230, yLabel: "θ °", series: [line("measured", C.actual), line("model", C.target)] });
+  makeChart($("plot-overlay"), { height: 230, yLabel: "θ °", series: [line("measured", C.actual, { width: 2.4 }), line("model (k-step prediction)", C.target, { dash: [5, 3], width: 1.4 })] });
   makeChart($("plot-residual"), { height: 140, xLabel: "time (s)", yLabel: "residual °", series: [line("residual", "#6f42c1")] });
   makeChart($("plot-acf"), { height: 150, yLabel: "autocorr.", xLabel: "lag (s)",
     series: [line("residual autocorrelation", C.actual), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });
@@ -18,14 +18,14 @@ export function init(s) {
     series: [line("input–residual", C.target), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });
   makeChart($("plot-versions"), {
     height: 180, xLabel: "version", yLabel: "RMS error °",
-    series: [bars("RMS error °", "#e8590c"), { label: "fit %", stroke: C.actual, width: 2, scale: "fit", points: { show: true, size: 7 } }],
+    series: [bars("RMS error °", "#e8590c"), { label: "fit of increments %", stroke: C.actual, width: 2, scale: "fit", points: { show: true, size: 7 } }],
     opts: {
       axes: [
         { label: "version", stroke: "#5f6b7a", grid: { show: false }, incrs: [1], values: (u, vals) => vals.map((v) => `v${v}`) },
         { label: "RMS error °", stroke: "#e8590c", grid: { stroke: "#eef1f5" }, size: 56 },
-        { scale: "fit", side: 1, label: "fit %", stroke: C.actual, grid: { show: false }, size: 50 },
+        { scale: "fit", side: 1, label: "fit of increments %", stroke: C.actual, grid: { show: false }, size: 50 },
       ],
-      scales: { x: { time: false, range: (u, mn, mx) => [mn - 0.6, mx + 0.6] }, fit: { range: [null, 100] } },
+      scales: { x: { time: false, range: (u, mn, mx) => [mn - 0.6, mx + 0.6] }, y: { range: (u, mn, mx) => [0, mx * 1.1] } },
       cursor: { drag: { x: false, y: false } },
     },
   });
@@ -40,7 +40,7 @@ export function show() { loadList(); }
 export async function selectMeasurement(id) {
   selected = id;
   for (const li of document.querySelectorAll("#meas-list li")) li.classList.toggle("selected", +li.dataset.id === id);
-  $("diag-cards").innerHTML = ""; $("wb-verdict").textContent = ""; $("wb-error").textContent = "";
+  $("diag-cards").innerHTML = ""; $("diag-notes").innerHTML = ""; $("wb-verdict").textContent = ""; $("wb-error").textContent = "";
   const canEdit = session.can("engineer");
   $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit;
   await loadVersions();
@@ -83,7 +83,7 @@ function setBusy(on) { busy = on; $("wb-busy").hidden = !on; }
 async function loadVersions() {
   versions = await get(`/workbench/measurements/${selected}/versions`);
   const x = versions.map((_, i) => i + 1);
-  setData($("plot-versions"), [x, versions.map((v) => v.fit.rms_deg), versions.map((v) => v.fit.fit_percent)]);
+  setData($("plot-versions"), [x, versions.map((v) => v.fit.rms_deg), versions.map((v) => v.fit.fit_percent_increment)]);
   $("version-list").innerHTML = versions.map((v, i) => `<li><span><b>v${i + 1}</b> ${esc(v.label)}<br>
     <span class="meta">${v.model.effects.length ? esc(v.model.effects.join(", ")) : "base model"}</span></span>
     <span class="meta">${fmt(v.fit.rms_deg, 4)}° · ${fmt(v.fit.fit_percent, 2)} %</span></li>`).join("");
@@ -136,9 +136,11 @@ export async function diagnose() {
       <h3><span>${i + 1}. ${esc(c.effect)}</span><span class="badge ${c.significant ? "sig" : ""}">${c.significant ? "significant" : "not significant"}</span></h3>
       <div>fit would reach <span class="fit">${fmt(c.fit_percent, 2)} %</span></div>
       <div class="evidence">${esc(c.evidence || "")}</div>
+      ${c.confused_with && c.confused_with.length ? `<div class="params">looks like ${esc(c.confused_with.join(", "))}${c.experiment ? ` — to tell apart: ${esc(c.experiment)}` : ""}</div>` : ""}
       <div class="params">${Object.entries(c.params || {}).map(([k, v]) => `${esc(k)} = ${Number(v).toPrecision(4)}${c.stderr && c.stderr[k] ? ` ± ${Number(c.stderr[k]).toPrecision(2)}` : ""}`).join("<br>")}</div>
       <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") ? "" : "disabled"}>Add effect</button>
-    </div>`).join("") + (d.notes && d.notes.length ? `<p class="muted small">${d.notes.map(esc).join("<br>")}</p>` : "");
+    </div>`).join("");
+    $("diag-notes").innerHTML = (d.notes || []).map(esc).join("<br>");
     for (const b of document.querySelectorAll("[data-add]")) b.onclick = () => addEffect(b.dataset.add);
   } catch (e) { $("wb-error").textContent = e.message; }
   finally { setBusy(false); }
