@@ -66,7 +66,7 @@ def reverberant_wall_recording():
     array = example_array("square4_65mm")
     settings_ = room.RoomSettings(rt60_s=0.4, snr_db=10.0)
     placement = room.wall_placement(settings_)
-    speech = synthetic_speech(4.0, FS_HZ, seed=11)
+    speech = synthetic_speech(6.0, FS_HZ, seed=11)
     position = room.position_from_direction(placement, np.deg2rad(-40.0), 2.0, 1.4)
     talker = room.static_talker(speech.samples, speech.active, position)
     recording = room.simulate(settings_, array, placement, [talker], seed=5)
@@ -75,8 +75,12 @@ def reverberant_wall_recording():
 
 
 def _window_errors(method, array, recording, true_az, **options):
+    """Errors on the 1 s windows in which the talker is active at least half the time."""
     localizer = make_localizer(method, array, FS_HZ, **options)
-    windows = [recording.audio[:, k * FS_HZ : (k + 1) * FS_HZ] for k in range(4)]
+    centres = np.arange(6) + 0.5
+    talking = recording.activity(centres, window_s=1.0)[0] >= 0.5
+    windows = [recording.audio[:, k * FS_HZ : (k + 1) * FS_HZ] for k in np.flatnonzero(talking)]
+    assert len(windows) >= 4
     return [angle_error_deg(localizer.locate(w).azimuth_rad, true_az) for w in windows]
 
 
@@ -86,7 +90,7 @@ def test_seed_method_fails_in_a_reverberant_room_where_srp_phat_does_not(reverbe
     srp_errors = _window_errors("srp_phat", array, recording, true_az)
     assert np.median(seed_errors) > 20.0, seed_errors
     assert np.median(srp_errors) < 5.0, srp_errors
-    assert sum(e < 8.0 for e in srp_errors) >= 3, srp_errors
+    assert np.mean(np.array(srp_errors) < 8.0) >= 0.75, srp_errors
 
 
 def test_srp_dpd_holds_in_the_reverberant_room(reverberant_wall_recording):
