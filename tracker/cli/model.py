@@ -63,7 +63,7 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--effects", default="", help="effects added to the base model, comma-separated")
     p.add_argument("--gain", type=float, default=None, help="amplifier gain K (N·m/V, or N/V for a linear axis)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="set a parameter, e.g. inertia.J=0.003")
-    p.add_argument("--horizon", type=float, default=None, metavar="S", help="prediction horizon, s (default 0.05)")
+    p.add_argument("--horizon", type=float, default=None, metavar="S", help="prediction horizon, s (default 0.03)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 

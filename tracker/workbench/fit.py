@@ -276,7 +276,7 @@ def fit_model(
     meas : measured log.
     model : structure (effects) and starting values; K is taken from it.
     free : parameters to fit (full names); default :func:`default_free`.
-    horizon_s : prediction horizon of the fit and of the reported fit % (default 0.05 s).
+    horizon_s : prediction horizon of the fit and of the reported fit % (default 0.03 s).
     fit_gain : also fit K (J is then held: only torque/K is identifiable).
     progress : called with the fraction done (0..1) now and then.
     cancel : polled during the fit; returning True raises :class:`JobCancelled`.
@@ -327,14 +327,14 @@ def fit_model(
         if progress is not None and n_eval % 10 == 0:
             progress(min(0.95, 0.1 + 0.85 * n_eval / 150.0))
         m = coords.decode(model0, x)
-        e = with_load_observer(est, m, dt) if two_mass else est
+        e = with_load_observer(est, m, meas) if two_mass else est
         pred = predict_windows(m, u, dt, starts, k + 1, e.initial_states(starts))[:, 1:]
         return ((y_win - pred) / noise).ravel()
 
     x0 = coords.encode(model0)
     sol = least_squares(
         residuals, x0, bounds=(coords.lower, coords.upper), method="trf", x_scale=1.0,
-        diff_step=1e-4, xtol=1e-8, ftol=1e-8, max_nfev=MAX_EVALUATIONS,
+        diff_step=1e-3, xtol=1e-8, ftol=1e-8, max_nfev=MAX_EVALUATIONS,
     )
     fitted = coords.decode(model0, sol.x)
     resid = sol.fun * noise

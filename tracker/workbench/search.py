@@ -37,8 +37,15 @@ MAX_RIPPLE_SAMPLES = 8000
 DELAY_GRID_S = (0.0, 0.002, 0.005, 0.01, 0.015, 0.02, 0.03, 0.045, 0.065, 0.09, 0.12, 0.16)
 STRIBECK_GRID = (0.02, 0.05, 0.1, 0.2, 0.4)  # × the 95th-percentile speed
 SATURATION_GRID = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)  # × max |u|
-BACKLASH_GRID_COUNTS = (2.0, 5.0, 12.0, 30.0, 80.0, 200.0)  # × the encoder count (or noise)
-COMPLIANCE_GRID_HZ = (3.0, 6.0, 12.0, 25.0, 50.0, 100.0, 200.0)
+# Backlash widths: 1 to 300 encoder counts, ratio 1.25 (the cost has a basin about ±20 % wide).
+BACKLASH_GRID_COUNTS = tuple(float(x) for x in np.geomspace(1.0, 300.0, 26))
+# Belt resonance: ratio 1.05 (the k-step cost's basin is only about ±10 % wide).
+COMPLIANCE_GRID_HZ = tuple(float(x) for x in np.geomspace(0.5, 300.0, 132))
+COMPLIANCE_DAMPING_GRID = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8)
+# Low-pass of the rigid-body inverse dynamics for two-mass models (Hz).
+TWO_MASS_ID_CUTOFF_HZ = 2.0
+# Grids on the prediction error use every GRID_WINDOW_STRIDE-th window (4× cheaper).
+GRID_WINDOW_STRIDE = 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,10 +56,10 @@ class StartValues:
     id_error_percent: float
 
 
-def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int) -> float:
-    """Mean squared k-step window prediction error (rad²) of ``model``."""
-    starts = np.arange(0, meas.n - k - 1, k, dtype=np.int64)
-    e = with_load_observer(est, model, meas.dt_s)
+def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int, stride: int = 1) -> float:
+    """Mean squared k-step window prediction error (rad²) of ``model`` (every ``stride``-th window)."""
+    starts = np.arange(0, meas.n - k - 1, k * stride, dtype=np.int64)
+    e = with_load_observer(est, model, meas)
     pred = predict_windows(model, meas.u_v, meas.dt_s, starts, k + 1, e.initial_states(starts))[:, 1:]
     y = meas.theta_rad[starts[:, None] + np.arange(1, k + 1)[None, :]]
     return float(np.mean((y - pred) ** 2))
@@ -100,8 +107,15 @@ def find_ripple_cycles(meas: Measurement, est: StateEstimate, model: AxisModel) 
     return float(ns[int(np.argmax(amps))])
 
 
+def _cutoff_hz(model: AxisModel) -> float | None:
+    """Rigid-body inverse dynamics of a two-mass axis: keep well below the belt resonance."""
+    if model.has("compliance") or model.has("backlash"):
+        return TWO_MASS_ID_CUTOFF_HZ
+    return None
+
+
 def _id_error(meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str]) -> float:
-    return fit_inverse_dynamics(meas, est, model, free).relative_error_percent
+    return fit_inverse_dynamics(meas, est, model, free, cutoff_hz=_cutoff_hz(model)).relative_error_percent
 
 
 def _grid_on_id(meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], free: Sequence[str]) -> AxisModel:
@@ -118,11 +132,11 @@ def _grid_on_id(meas: Measurement, est: StateEstimate, model: AxisModel, name: s
 
 def _grid_on_prediction(meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], k: int) -> AxisModel:
     prm = get_param(name)
-    best, best_cost = model, window_cost(meas, est, model, k)
+    best, best_cost = model, window_cost(meas, est, model, k, GRID_WINDOW_STRIDE)
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
         cand = model.with_params({name: v})
-        cost = window_cost(meas, est, cand, k)
+        cost = window_cost(meas, est, cand, k, GRID_WINDOW_STRIDE)
         if cost < best_cost:
             best, best_cost = cand, cost
     return best
@@ -148,7 +162,7 @@ def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: 
             m = _grid_on_id(meas, est, m, "saturation.limit", [f * umax for f in SATURATION_GRID], linear_free)
         if "stiction.velocity" in free:
             m = _grid_on_id(meas, est, m, "stiction.velocity", [f * w95 for f in STRIBECK_GRID], linear_free)
-        idf = fit_inverse_dynamics(meas, est, m, linear_free)
+        idf = fit_inverse_dynamics(meas, est, m, linear_free, cutoff_hz=_cutoff_hz(m))
     except ConfigError:
         idf = None
     m_id = m.with_params({k_: v for k_, v in idf.params.items() if k_ in linear_free}) if idf else m
@@ -163,6 +177,8 @@ def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: 
     if "compliance.frequency" in free:
         nyq = 0.5 / meas.dt_s
         m_id = _grid_on_prediction(meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k)
+        if "compliance.damping" in free:
+            m_id = _grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
     # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
     own = m.with_params({n: m_id.params[n] for n in m_id.params if n.split(".")[0] in ("delay", "saturation", "backlash", "compliance", "ripple", "quantization") or n == "stiction.velocity"})
     if window_cost(meas, est, own, k) < window_cost(meas, est, m_id, k):

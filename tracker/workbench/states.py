@@ -8,10 +8,12 @@ intensity is chosen by maximum likelihood of the forward filter's innovations ov
 bandwidths, so steps in the command (jumps in acceleration) and slow ramps are both followed.
 
 Two-mass models (``backlash``, ``compliance``) hide the load side from the encoder. We estimate
-it with a model-based observer run along the data: the load's equation of motion
-``J_l θl'' = τ_belt(θm − θl, ωm − ωl) − τ_gravity(θl)`` is integrated with the smoothed motor
-state as its input. That subsystem is damped by the belt, so the estimate forgets its
-(unknown) start within a few resonance periods.
+it with a model-based (Luenberger) observer run along the data: the full two-mass model is
+simulated with the measured command and its motor side is pulled toward the encoder at every
+sample; the load side follows through the model's belt and dead band. The motor side keeps the
+smoother's estimate (so rigid and two-mass models start their predictions from the same motor
+state); the load side comes from the observer. Through a backlash gap the load is only weakly
+observable (it coasts while the motor is stuck), which limits what k-step prediction can do there.
 """
 
 from __future__ import annotations
@@ -24,24 +26,15 @@ from numba import njit
 from numpy.typing import NDArray
 
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import (
-    I_BW,
-    I_CC,
-    I_CK,
-    I_GPH,
-    I_GT,
-    I_JL,
-    I_NSUB,
-    I_TWO,
-    STATE_SIZE,
-    pack_params,
-)
+from tracker.plant.simulate import STATE_SIZE, advance, pack_params
 from tracker.workbench.data import Measurement
 
 FloatArray = NDArray[np.float64]
 
 # Smoother bandwidths tried (Hz); the likeliest wins. Spans slow ramps to belt resonances.
 BANDWIDTHS_HZ = (3.0, 6.0, 12.0, 25.0, 50.0, 100.0)
+# Bandwidth of the model-based observer's motor-side correction (two-mass models).
+OBSERVER_BANDWIDTH_HZ = 80.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -221,49 +214,38 @@ def smooth_kinematics(
 
 
 @njit(cache=True)
-def _load_observer(P: FloatArray, th_m: FloatArray, om_m: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
-    """Integrate the load side driven by the motor trajectory (belt spring with dead band)."""
-    n = th_m.shape[0]
-    n_sub = int(P[I_NSUB])
-    h = dt / n_sub
-    half = 0.5 * P[I_BW]
-    th_l = np.empty(n)
-    om_l = np.empty(n)
-    xl, vl = th_m[0], om_m[0]
+def _model_observer(P: FloatArray, u: FloatArray, y: FloatArray, dt: float, x0: FloatArray, l_pos: float, l_vel: float) -> FloatArray:
+    """Luenberger observer on the full model: predict with the simulator, correct the motor
+    side toward the encoder. Returns the state at every sample, shape (n, 4)."""
+    n = y.shape[0]
+    out = np.empty((n, STATE_SIZE))
+    x = x0.copy()
     for k in range(n):
-        th_l[k] = xl
-        om_l[k] = vl
-        if k == n - 1:
-            break
-        for i in range(n_sub):
-            a = i / n_sub
-            xm = th_m[k] + a * (th_m[k + 1] - th_m[k])
-            vm = om_m[k] + a * (om_m[k + 1] - om_m[k])
-            delta = xm - xl
-            if delta > half:
-                dz = delta - half
-            elif delta < -half:
-                dz = delta + half
-            else:
-                dz = 0.0
-            tau_c = P[I_CK] * dz
-            if dz != 0.0:
-                tau_c += P[I_CC] * (vm - vl)
-            vl += h * (tau_c - P[I_GT] * math.sin(xl + P[I_GPH])) / P[I_JL]
-            xl += h * vl
-    return th_l, om_l
+        innov = y[k] - x[0]
+        x[0] += l_pos * innov
+        x[1] += l_vel * innov
+        out[k] = x
+        if k < n - 1:
+            advance(x, P, u, k, dt, 0.0)
+    return out
 
 
-def observe_load(model: AxisModel, theta_m_rad: FloatArray, omega_m_rad_s: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
-    """Load-side angle and velocity (shape (n,) each) of a two-mass ``model`` driven by the motor.
+def observe_states(
+    model: AxisModel, meas: Measurement, bandwidth_hz: float = OBSERVER_BANDWIDTH_HZ
+) -> FloatArray:
+    """Run the model-based observer along ``meas``: states ``[θm, ωm, θl, ωl]``, shape (n, 4).
 
-    Velocities in the simulator's convention (see :meth:`StateEstimate.initial_states`). For a
-    rigid model the inputs are returned as they are (the same arrays).
+    The motor-side error dynamics get both poles at exp(−2π·bandwidth·dt): gains
+    l_pos = 1 − p², l_vel = (1 − p)²/dt. The load side is carried by the model (spring, dead
+    band, gravity), which is what makes it observable through the motor: during a backlash
+    traversal the model knows the light motor crosses the gap while the load coasts.
     """
-    P = pack_params(model, dt_s, quantize=False)
-    if P[I_TWO] == 0.0:
-        return theta_m_rad, omega_m_rad_s
-    return _load_observer(P, np.ascontiguousarray(theta_m_rad), np.ascontiguousarray(omega_m_rad_s), float(dt_s))
+    dt = meas.dt_s
+    P = pack_params(model, dt, quantize=False)
+    p = math.exp(-2.0 * math.pi * bandwidth_hz * dt)
+    y = np.ascontiguousarray(meas.theta_rad, dtype=float)
+    x0 = np.array([y[0], 0.0, y[0], 0.0])
+    return _model_observer(P, np.ascontiguousarray(meas.u_v, dtype=float), y, dt, x0, 1.0 - p * p, (1.0 - p) ** 2 / dt)
 
 
 def estimate_states(meas: Measurement, model: AxisModel | None = None, bandwidth_hz: float | None = None) -> StateEstimate:
@@ -284,18 +266,22 @@ def estimate_states(meas: Measurement, model: AxisModel | None = None, bandwidth
     xs, sigma, bw = smooth_kinematics(meas.theta_rad, dt, bandwidth_hz)
     th, om, al = xs[:, 0].copy(), xs[:, 1].copy(), xs[:, 2].copy()
     est = StateEstimate(th, om, al, th, om, sigma, bw, dt)
-    return est if model is None else with_load_observer(est, model, dt)
+    return est if model is None else with_load_observer(est, model, meas)
 
 
-def with_load_observer(est: StateEstimate, model: AxisModel, dt_s: float) -> StateEstimate:
-    """``est`` with its load side re-estimated for ``model`` (cheap; the fitter calls it per step)."""
+def with_load_observer(est: StateEstimate, model: AxisModel, meas: Measurement) -> StateEstimate:
+    """``est`` with its load side re-estimated for ``model`` by :func:`observe_states`.
+
+    Rigid models get the motor side back. Cheap (one compiled pass); the fitter calls it at
+    every evaluation because the load estimate depends on the two-mass parameters.
+    """
     if not (model.has("backlash") or model.has("compliance")):
         th_l, om_l = est.theta_rad, est.omega_rad_s
     else:
-        half = 0.5 * dt_s * est.alpha_rad_s2
-        th_l, om_l = observe_load(model, est.theta_rad, est.omega_rad_s - half, dt_s)
-        om_l = om_l + half
-    return StateEstimate(est.theta_rad, est.omega_rad_s, est.alpha_rad_s2, th_l, om_l, est.noise_rad, est.bandwidth_hz, dt_s)
+        xs = observe_states(model, meas)
+        # Back from the simulator's half-step velocity convention to the smooth one.
+        th_l, om_l = xs[:, 2].copy(), xs[:, 3] + 0.5 * meas.dt_s * est.alpha_rad_s2
+    return StateEstimate(est.theta_rad, est.omega_rad_s, est.alpha_rad_s2, th_l, om_l, est.noise_rad, est.bandwidth_hz, meas.dt_s)
 
 
 __all__ = [
@@ -303,7 +289,7 @@ __all__ = [
     "encoder_step_rad",
     "estimate_states",
     "measurement_noise_rad",
-    "observe_load",
+    "observe_states",
     "smooth_kinematics",
     "with_load_observer",
 ]

@@ -12,12 +12,13 @@ torque is what a missing torque effect looks like ("residual torque follows sin 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import lsq_linear
+from scipy.signal import butter, sosfiltfilt
 
 from tracker.errors import DataError
 from tracker.plant.effects import CATALOGUE
@@ -171,29 +172,46 @@ def _fold_components(params: dict[str, float], effect: str) -> None:
     params[f"{effect}.phase"] = float(math.atan2(s, c))
 
 
+def _lowpass(cutoff_hz: float, dt_s: float) -> Callable[[FloatArray], FloatArray]:
+    """A zero-phase 4th-order Butterworth low-pass at ``cutoff_hz``."""
+    wn = min(0.99, 2.0 * cutoff_hz * dt_s)
+    sos = butter(4, wn, output="sos")
+    return lambda x: sosfiltfilt(sos, x)
+
+
 def fit_inverse_dynamics(
     meas: Measurement,
     est: StateEstimate,
     model: AxisModel,
     free: Sequence[str] | None = None,
     mask: BoolArray | None = None,
+    cutoff_hz: float | None = None,
 ) -> InverseDynamicsFit:
     """Least squares of ``K u_eff = J α + Σ τ(θ, ω)`` for the linear parameters in ``free``.
 
     Parameters not in ``free`` (and the nonlinear ones: delay, saturation, Stribeck velocity,
     ripple cycles, two-mass parameters) stay at the model's values; their torque moves to the
     left-hand side. Bounds come from the catalogue. ``mask`` selects samples (default: moving).
+    ``cutoff_hz`` low-passes both sides of the equation with the same zero-phase filter first
+    (the equation is linear in the parameters, so the filter cancels out of it): below a belt
+    resonance the axis moves as one rigid body, which is what this regression assumes.
     """
     free_set = list(model.free_param_names() if free is None else free)
     th, om, al = est.theta_rad, est.omega_rad_s, est.alpha_rad_s2
     sel = moving_mask(om) if mask is None else mask
     if int(sel.sum()) < 20:
         raise DataError(f"{meas.source or '<data>'}: the axis hardly moves; cannot identify friction or inertia")
-    names, cols = _columns(model, th[sel], om[sel], al[sel], free_set)
-    lhs = model.gain_nm_per_v * effective_command_v(model, meas.u_v, meas.dt_s)[sel]
-    rhs = lhs - model_torque_nm(_zero_linear(model, free_set), th[sel], om[sel])
+    names, cols = _columns(model, th, om, al, free_set)
+    lhs = model.gain_nm_per_v * effective_command_v(model, meas.u_v, meas.dt_s)
+    rhs = lhs - model_torque_nm(_zero_linear(model, free_set), th, om)
     if "inertia.J" not in free_set:
-        rhs = rhs - model.params["inertia.J"] * al[sel]
+        rhs = rhs - model.params["inertia.J"] * al
+    if cutoff_hz is not None:
+        lowpass = _lowpass(cutoff_hz, meas.dt_s)
+        cols = [lowpass(c) for c in cols]
+        lhs, rhs = lowpass(lhs), lowpass(rhs)
+    cols = [c[sel] for c in cols]
+    lhs, rhs = lhs[sel], rhs[sel]
     params = dict(model.params)
     res = rhs
     if names:
