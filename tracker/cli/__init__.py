@@ -23,16 +23,26 @@ COMMAND_MODULES = (
     "tracker.cli.friction",
     "tracker.cli.audio",
 )
+# The first word of the command line -> the one module that registers it. Only that module is
+# imported (the others pull in scipy, python-control, pyroomacoustics: seconds of start-up).
+COMMAND_OWNERS = {
+    "simulate": "tracker.cli.simulate",
+    "serve": "tracker.cli.serve",
+    "model": "tracker.cli.model",
+    "friction-id": "tracker.cli.friction",
+    "audio": "tracker.cli.audio",
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the full ``tracker`` argument parser."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """Return the ``tracker`` argument parser; with ``command`` only that command is registered."""
     parser = argparse.ArgumentParser(
         prog="tracker",
         description="3DAT: audio-steered pan/tilt camera engine, digital twin and model workbench.",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module_name in COMMAND_MODULES:
+    owner = COMMAND_OWNERS.get(command or "")
+    for module_name in (owner,) if owner else COMMAND_MODULES:
         try:
             module = importlib.import_module(module_name)
         except ModuleNotFoundError as exc:
@@ -45,8 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``tracker`` console script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(args_list[0] if args_list else None)
+    args = parser.parse_args(args_list)
     if not hasattr(args, "func"):
         parser.print_help()
         return 1
