@@ -23,12 +23,26 @@ from scipy import optimize
 from tracker.errors import JobCancelled
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import I_BW, I_CC, I_CK, I_GPH, I_GT, I_JL, I_NSUB, I_TWO, STATE_SIZE, pack_params, predict_windows
+from tracker.plant.simulate import (
+    I_BW,
+    I_CC,
+    I_CK,
+    I_GPH,
+    I_GT,
+    I_JL,
+    I_NSUB,
+    I_TWO,
+    STATE_SIZE,
+    advance,
+    pack_params,
+    predict_windows,
+)
 from tracker.workbench.data import Measurement
 from tracker.workbench.idim import Signals
 
 FloatArray = NDArray[np.float64]
 DEFAULT_HORIZON_S = 0.05
+BACKLASH_STARTS = 9  # places in the dead band tried at each window start
 
 
 @njit(cache=True)
@@ -58,6 +72,41 @@ def _load_observer(P: FloatArray, th_m: FloatArray, om_m: FloatArray, dt: float)
             vl += h * (tau_c - P[I_GT] * math.sin(xl + P[I_GPH])) / P[I_JL]
             xl += h * vl
     return th_l, om_l
+
+
+@njit(cache=True)
+def _shoot_windows(
+    P: FloatArray, u: FloatArray, dt: float, starts: NDArray[np.int64], horizon: int, settle: int,
+    x0s: FloatArray, y: FloatArray, offsets: FloatArray, vrels: FloatArray,
+) -> FloatArray:
+    """Per window, start the load at each (offset, relative speed), keep the start that best
+    predicts the first ``settle`` samples, return that start's errors. Shape (m, horizon)."""
+    m = starts.shape[0]
+    out = np.empty((m, horizon))
+    x = np.empty(STATE_SIZE)
+    for w in range(m):
+        best_cost = np.inf
+        best_o, best_v = 0.0, 0.0
+        for o in offsets:
+            for v in vrels:
+                x[:] = x0s[w]
+                x[2] = x[0] - o
+                x[3] = x[1] + v
+                cost = 0.0
+                for i in range(1, settle + 1):
+                    advance(x, P, u, starts[w] + i - 1, dt, 0.0)
+                    d = y[w, i] - x[0]
+                    cost += d * d
+                if cost < best_cost:
+                    best_cost, best_o, best_v = cost, o, v
+        x[:] = x0s[w]
+        x[2] = x[0] - best_o
+        x[3] = x[1] + best_v
+        out[w, 0] = y[w, 0] - x[0]
+        for i in range(1, horizon):
+            advance(x, P, u, starts[w] + i - 1, dt, 0.0)
+            out[w, i] = y[w, i] - x[0]
+    return out
 
 
 def observe_load(model: AxisModel, theta_m_rad: FloatArray, omega_m_rad_s: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
@@ -109,6 +158,7 @@ class KStepJudge:
         y_end = self.y[:, -1]
         self.end_norm = float(np.linalg.norm(y_end - y_end.mean())) or 1.0
         self.group = (self.starts // max(self.k, self.stride * 4)).astype(np.int64)
+        self.k_settle = self.k // 3  # samples a hidden-state start may use to settle
         # Squared error per sample that is only measurement noise (quantization step²/12).
         self.noise_floor = max(sig.encoder_step_rad, 1e-12) ** 2 / 12.0
 
@@ -124,15 +174,28 @@ class KStepJudge:
         return x0
 
     def errors(self, model: AxisModel) -> FloatArray:
-        """Measured − predicted, shape (m, k + 1)."""
-        pred = predict_windows(model, self.u, self.dt, self.starts, self.k + 1, self.initial_states(model))
-        return self.y - pred
+        """Measured − predicted, shape (m, k + 1).
+
+        With backlash the load's place in the dead band is not observable from a short past
+        (a frictionless load coasts in the gap), so each window starts from the best of a few
+        places in the band, chosen on the window's first third only (multiple shooting);
+        :meth:`score` counts the errors after that third, for every model alike.
+        """
+        x0 = self.initial_states(model)
+        if not model.has("backlash"):
+            return self.y - predict_windows(model, self.u, self.dt, self.starts, self.k + 1, x0)
+        half = 0.5 * model.params["backlash.width"]
+        offsets = np.linspace(-half, half, BACKLASH_STARTS)
+        speed = float(np.percentile(np.abs(self.omega_s), 90)) or 1.0
+        vrels = speed * np.array([-0.3, -0.1, -0.03, 0.0, 0.03, 0.1, 0.3])
+        P = pack_params(model, self.dt, quantize=False)
+        return _shoot_windows(P, self.u, self.dt, self.starts, self.k + 1, self.k_settle, x0, self.y, offsets, vrels)
 
     def score(self, model: AxisModel) -> KStepScore:
         e = self.errors(model)
         end = e[:, -1]
         fit = 100.0 * (1.0 - float(np.linalg.norm(end)) / self.end_norm)
-        return KStepScore(np.sum(e[:, 1:] ** 2, axis=1), end, fit)
+        return KStepScore(np.sum(e[:, self.k_settle + 1 :] ** 2, axis=1), end, fit)
 
     def compare(self, base: KStepScore, cand: KStepScore) -> Comparison:
         """Paired comparison over blocks of windows (blocks ≥ 4 windows long).
@@ -185,7 +248,7 @@ def refine(
         if cancel is not None and cancel():
             raise JobCancelled("diagnosis cancelled while refitting a candidate")
         m = model.with_params(wrap(z * scale))
-        return judge.errors(m)[:, 2::3].ravel()
+        return judge.errors(m)[:, judge.k_settle + 1 :: 3].ravel()
 
     sol = optimize.least_squares(resid, z0, bounds=(lo / scale, hi / scale), x_scale=1.0, max_nfev=max_evals,
                                  diff_step=1e-3, method="trf")

@@ -239,7 +239,8 @@ def screen(effect: str, design: TorqueDesign, model: AxisModel, base: Structure,
            structure: Structure, extra_dof: int, detail: Mapping[str, float] | None = None,
            reg: Regression | None = None) -> Screen:
     """Score ``structure`` (``base`` plus ``effect``) against the base regression."""
-    reg = reg or design.fit(structure, base_reg.n_eff)
+    if reg is None or not reg.sse_fold.any():  # grid searches fit without the held-out folds
+        reg = design.fit(structure, base_reg.n_eff)
     params, stderr = model_params(model, structure, reg)
     gain = 1.0 - reg.sse_cv / base_reg.sse_cv if base_reg.sse_cv > 0 else 0.0
     p = improvement_p_value(base_reg, reg, extra_dof, effective_samples(reg.residual))
