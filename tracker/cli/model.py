@@ -41,11 +41,12 @@ def _overrides(items: list[str] | None) -> dict[str, float]:
         name, sep, value = item.partition("=")
         if not sep:
             raise ConfigError(f"--set {item!r}: expected NAME=VALUE, e.g. inertia.J=0.003")
-        get_param(name.strip())
+        prm = get_param(name.strip())
         try:
-            out[name.strip()] = float(value)
+            v = float(value)
         except ValueError:
             raise ConfigError(f"--set {item!r}: {value!r} is not a number") from None
+        out[name.strip()] = prm.check(v, f"--set {name.strip()}")
     return out
 
 

@@ -38,13 +38,14 @@ DEFAULT_DATA_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "em
 def load_emps(path: str | Path) -> tuple[Measurement, float]:
     """Read an EMPS ``.mat`` file. Returns (measurement with t s, u = vir V, theta = qm m; gtau N/V)."""
     from scipy.io import loadmat
+    from scipy.io.matlab import MatReadError
 
     p = Path(path)
     try:
         mat = loadmat(str(p))
     except FileNotFoundError:
         raise DataError(f"{p}: no such file") from None
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, MatReadError) as exc:
         raise DataError(f"{p}: not a readable MATLAB file ({exc})") from None
     missing = [k for k in ("t", "qm", "vir") if k not in mat]
     if missing:

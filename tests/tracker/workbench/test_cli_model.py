@@ -1,0 +1,83 @@
+"""``tracker model compare|fit``: the JSON contract, readable tables, one-line errors."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tracker.cli import main
+from tracker.plant.model import AxisModel
+from tracker.workbench.data import write_log
+from tracker.workbench.excite import closed_loop_log
+
+
+@pytest.fixture(scope="module")
+def log_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    true = AxisModel.for_axis("pan", ["quantization", "offset"], {"offset.torque": 0.01})
+    path = tmp_path_factory.mktemp("cli") / "run.csv"
+    write_log(path, closed_loop_log(true, duration_s=10.0, seed=2))
+    return path
+
+
+def test_compare_json_contract(log_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["model", "compare", str(log_path), "--axis", "pan", "--effects", "offset", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert isinstance(d["fit_percent"], float) and isinstance(d["rms_deg"], float)
+    assert {"rms_deg", "share_of_error_percent", "samples", "fraction_of_time"} <= set(d["regimes"]["reversal"])
+
+
+def test_fit_json_contract_has_every_parameter(log_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["model", "fit", str(log_path), "--axis", "pan", "--effects", "offset", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert set(d["params"]) == set(AxisModel.for_axis("pan", ["offset"]).params)
+    assert set(d["stderr"]) == {"inertia.J", "viscous.b", "coulomb.torque", "offset.torque"}
+    assert d["params"]["offset.torque"] == pytest.approx(0.01, rel=0.1)
+
+
+def test_tables_for_people(log_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["model", "compare", str(log_path), "--axis", "tilt"]) == 0
+    out = capsys.readouterr().out
+    assert "reversal" in out and "fit" in out
+    assert main(["model", "fit", str(log_path), "--axis", "pan", "--gain", "0.07416"]) == 0
+    out = capsys.readouterr().out
+    assert "coulomb.torque" in out and "±" in out
+
+
+@pytest.mark.parametrize(
+    ("content", "needle"),
+    [
+        ("t,u\n0,1\n", "missing column theta"),
+        ("t,u,theta\n" + "".join(f"{i * 1e-3},0,{'x' if i == 5 else 0}\n" for i in range(300)), "line 7: theta"),
+        ("t,u,theta\n" + "".join(f"{i * 1e-3},0,{'nan' if i == 3 else 0}\n" for i in range(300)), "line 5"),
+        ("t,u,theta\n" + "".join(f"{(i if i != 9 else 8) * 1e-3},0,0\n" for i in range(300)), "time does not increase"),
+        ("t,u,theta\n" + "".join(f"{i * 1e-3 * (2 if i > 100 else 1)},0,0\n" for i in range(300)), "uneven sampling"),
+        ("t,u,theta\n0,0,0\n0.001,0,0\n", "only 2 samples"),
+    ],
+    ids=["missing-column", "non-numeric", "nan", "time-backwards", "uneven", "too-short"],
+)
+def test_bad_data_is_one_line_naming_the_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str, needle: str
+) -> None:
+    bad = tmp_path / "bad.csv"
+    bad.write_text(content, encoding="utf-8")
+    assert main(["model", "fit", str(bad), "--axis", "pan", "--json"]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--effects", "flux_capacitor"], "unknown effect 'flux_capacitor'"),
+        (["--gain", "-1"], "--gain"),
+        (["--set", "inertia.J"], "NAME=VALUE"),
+        (["--set", "inertia.J=-5"], "inertia.J"),
+    ],
+    ids=["unknown-effect", "bad-gain", "bad-set", "out-of-bounds"],
+)
+def test_bad_options_are_one_line_errors(
+    log_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], needle: str
+) -> None:
+    assert main(["model", "compare", str(log_path), "--axis", "pan", *args]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1
