@@ -25,7 +25,7 @@ from tracker.control.closed_loop import N_REC, R_U, R_Y
 from tracker.control.design import DEFAULT_CONTROLLER, DesignReport, check_gains, design_controller
 from tracker.control.gains import ControllerGains
 from tracker.control.limits import SoftLimits
-from tracker.control.loop import S_OM, S_REF, S_TH, controller_step, new_state, pack_controller
+from tracker.control.loop import S_INIT, S_OM, S_REF, S_TH, controller_step, new_state, pack_controller
 from tracker.control.trajectory import DEFAULT_LIMITS, TrajectoryLimits
 from tracker.drivers.motor import AXES, ClosedLoopDriver, MotorDriver
 from tracker.errors import ConfigError, DriverFault
@@ -120,7 +120,9 @@ class TelemetrySubscription:
 class _Axis:
     """Controller state of one axis."""
 
-    def __init__(self, name: str, model: AxisModel, gains: ControllerGains, shaping: TrajectoryLimits, dt: float) -> None:
+    def __init__(
+        self, name: str, model: AxisModel, gains: ControllerGains, shaping: TrajectoryLimits, dt: float
+    ) -> None:
         self.name = name
         self.model = model
         self.limits = SoftLimits.for_axis(name)
@@ -213,10 +215,14 @@ class Engine:
         """Move ``axis`` at ``rate_rad_s`` until a rate of 0, or ``timeout_s`` without renewal."""
         ax = self._axis(axis)
         if not (math.isfinite(rate_rad_s) and math.isfinite(timeout_s) and timeout_s > 0):
-            raise ConfigError(f"jog {axis}: rate {rate_rad_s!r} rad/s and timeout {timeout_s!r} s must be finite")
+            raise ConfigError(
+                f"jog {axis}: rate {rate_rad_s!r} rad/s and timeout {timeout_s!r} s must be finite"
+            )
         limit = ax.shaping.rate_rad_s
         if abs(rate_rad_s) > limit:
-            raise ConfigError(f"jog {axis}: rate {rate_rad_s:g} rad/s exceeds the axis rate limit {limit:g} rad/s")
+            raise ConfigError(
+                f"jog {axis}: rate {rate_rad_s:g} rad/s exceeds the axis rate limit {limit:g} rad/s"
+            )
         if not self._manual:
             self._manual = True
             for a in AXES:  # start from where the axes are
@@ -257,8 +263,15 @@ class Engine:
         """The engine's state now."""
         p, t = self._axes["pan"], self._axes["tilt"]
         return EngineStatus(
-            self._t, p.y_rad, t.y_rad, p.target_rad, t.target_rad, self.mode, self._tracking,
-            self._driver.faults(), self._talker,
+            self._t,
+            p.y_rad,
+            t.y_rad,
+            p.target_rad,
+            t.target_rad,
+            self.mode,
+            self._tracking,
+            self._driver.faults(),
+            self._talker,
         )
 
     @property
@@ -270,7 +283,12 @@ class Engine:
             return "disabled"
         if self._manual:
             return "manual"
-        if self._tracking and self._source is not None and self._source_name is not None and self._talker_fresh:
+        if (
+            self._tracking
+            and self._source is not None
+            and self._source_name is not None
+            and self._talker_fresh
+        ):
             return "tracking"
         return "hold"
 
@@ -343,7 +361,7 @@ class Engine:
                 y = drv.read_encoder(a)
                 u = controller_step(ax.cp, ax.cs, y, float(targets[a][k])) if drv.enabled else 0.0
                 if not drv.enabled:
-                    ax.cs[11] = 0.0  # re-initialise on re-enable
+                    ax.cs[S_INIT] = 0.0  # re-initialise on re-enable
                 drv.command(a, u)
                 out[a][k, R_Y], out[a][k, R_U] = y, u
                 out[a][k, 3], out[a][k, 4] = ax.cs[S_REF], ax.cs[S_OM]
@@ -375,10 +393,24 @@ class Engine:
 
     def _snapshot(self) -> TelemetrySnapshot:
         p, t = self._axes["pan"], self._axes["tilt"]
-        source = self._source_name if (self._tracking and not self._manual) else ("manual" if self._manual else None)
+        source = (
+            self._source_name
+            if (self._tracking and not self._manual)
+            else ("manual" if self._manual else None)
+        )
         return TelemetrySnapshot(
-            self._t, p.y_rad, t.y_rad, p.target_rad, t.target_rad, p.u_v, t.u_v, self.mode, self._tracking,
-            source, self._estimate[0], self._estimate[1],
+            self._t,
+            p.y_rad,
+            t.y_rad,
+            p.target_rad,
+            t.target_rad,
+            p.u_v,
+            t.u_v,
+            self.mode,
+            self._tracking,
+            source,
+            self._estimate[0],
+            self._estimate[1],
         )
 
     def _axis(self, axis: str) -> _Axis:

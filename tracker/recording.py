@@ -19,7 +19,9 @@ class Recorder:
         self._source = source
         self._chunks: dict[str, list[NDArray[np.float64]]] = {a: [] for a in axes}
 
-    def add(self, axis: str, t_s: NDArray[np.float64], u_v: NDArray[np.float64], theta_rad: NDArray[np.float64]) -> None:
+    def add(
+        self, axis: str, t_s: NDArray[np.float64], u_v: NDArray[np.float64], theta_rad: NDArray[np.float64]
+    ) -> None:
         """Append samples (each shape (n,))."""
         self._chunks[axis].append(np.column_stack([t_s, u_v, theta_rad]))
 

@@ -45,7 +45,9 @@ def as_target(value: Target | tuple[float, float] | None, source: str) -> Target
             pan, tilt = value
             target = Target(float(pan), float(tilt))
         except (TypeError, ValueError):
-            raise ConfigError(f"target source {source!r} returned {value!r}, not (pan_rad, tilt_rad)") from None
+            raise ConfigError(
+                f"target source {source!r} returned {value!r}, not (pan_rad, tilt_rad)"
+            ) from None
     if target is not None and not (math.isfinite(target.pan_rad) and math.isfinite(target.tilt_rad)):
         raise ConfigError(f"target source {source!r} returned a non-finite angle {target!r}")
     return target

@@ -15,7 +15,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--host", default=None, help="listen address (console)")
     p.add_argument("--port", type=int, default=None, help="listen port (console)")
     p.add_argument("--config", default=None, metavar="FILE", help="service settings file")
-    p.add_argument("--rig-config", default=None, metavar="FILE.json", help="engine-only mode: hidden effects of the rig")
+    p.add_argument(
+        "--rig-config", default=None, metavar="FILE.json", help="engine-only mode: hidden effects of the rig"
+    )
     p.add_argument("--engine-only", action="store_true", help="run the engine without the web console")
     p.set_defaults(func=run)
 

@@ -21,12 +21,23 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("scenario", nargs="?", default="pointing", choices=("pointing", "meeting"))
     p.add_argument("--axis", choices=("pan", "tilt"), help="one axis only (default: both)")
-    p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="simulated seconds (pointing: the 20 s script repeats; meeting: default 60)")
-    p.add_argument("--effects", default="", metavar="A,B", help="hidden effects added to the twin (catalogue defaults)")
-    p.add_argument("--rig-config", default=None, metavar="FILE.json", help="hidden effects per axis (rig config file)")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="simulated seconds (pointing: the 20 s script repeats; meeting: default 60)",
+    )
+    p.add_argument(
+        "--effects", default="", metavar="A,B", help="hidden effects added to the twin (catalogue defaults)"
+    )
+    p.add_argument(
+        "--rig-config", default=None, metavar="FILE.json", help="hidden effects per axis (rig config file)"
+    )
     p.add_argument("--controller", default=DEFAULT_CONTROLLER, choices=sorted(CONTROLLERS))
-    p.add_argument("--record", default=None, metavar="FILE.csv", help="write the run as a t,u,theta log (one per axis)")
+    p.add_argument(
+        "--record", default=None, metavar="FILE.csv", help="write the run as a t,u,theta log (one per axis)"
+    )
     p.add_argument("--seed", type=int, default=0, help="meeting: random seed")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)
@@ -48,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
     out: dict[str, Any] = {}
     logs = {}
     for axis in axes:
-        res = run_pointing(axis, duration, args.controller, twin_for(axis, effects, rig), record=bool(args.record))
+        res = run_pointing(
+            axis, duration, args.controller, twin_for(axis, effects, rig), record=bool(args.record)
+        )
         out[axis] = res.figures
         if res.measurement is not None:
             logs[axis] = res.measurement

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from tracker.control.gains import ControllerGains
 from tracker.control.limits import SoftLimits
-from tracker.control.loop import S_OM, S_REF, controller_step, new_state, pack_controller
+from tracker.control.loop import S_INIT, S_OM, S_REF, controller_step, new_state, pack_controller
 from tracker.control.trajectory import TrajectoryLimits
 from tracker.errors import DataError
 from tracker.plant.model import AxisModel
@@ -72,7 +72,7 @@ def run_chunk(
             u = controller_step(cp, cs, y, targets[k])
         else:
             u = 0.0
-            cs[11] = 0.0  # re-initialise the controller on re-enable (bumpless)
+            cs[S_INIT] = 0.0  # re-initialise the controller on re-enable
         buf[h + k] = u
         rec[k, 0] = y
         rec[k, 1] = u

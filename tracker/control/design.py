@@ -107,7 +107,9 @@ def feedback_controller(model: AxisModel, gains: ControllerGains, dt_s: float = 
     return control.ss(a_c, b_c, -cu, -du, dt_s)
 
 
-def loop_transfer(model: AxisModel, gains: ControllerGains, delay_samples: int = 0, dt_s: float = TS_S) -> Any:
+def loop_transfer(
+    model: AxisModel, gains: ControllerGains, delay_samples: int = 0, dt_s: float = TS_S
+) -> Any:
     """L(z) = C(z)·P(z)·z^-d (negative feedback)."""
     loop = control.series(feedback_controller(model, gains, dt_s), control.tf2ss(plant_zoh(model, dt_s)))
     if delay_samples > 0:
@@ -146,7 +148,9 @@ def check_gains(
     if not stable:
         pm_deg = min(pm_deg, 0.0)
     wc = float(wpc) if np.isfinite(wpc) else math.nan
-    return DesignReport(pm_deg, gm_db, wc / (2.0 * math.pi), stable, radius, delay_samples, min_phase_margin_deg)
+    return DesignReport(
+        pm_deg, gm_db, wc / (2.0 * math.pi), stable, radius, delay_samples, min_phase_margin_deg
+    )
 
 
 def seed_lead_gains(model: AxisModel, axis: str) -> LeadGains:
@@ -216,19 +220,89 @@ CONTROLLERS: dict[str, DesignFn] = {
 DEFAULT_CONTROLLER = "observer_pd_ff"
 
 
-def design_controller(model: AxisModel, name: str = DEFAULT_CONTROLLER, axis: str = "pan", **options: Any) -> ControllerDesign:
+def design_controller(
+    model: AxisModel, name: str = DEFAULT_CONTROLLER, axis: str = "pan", **options: Any
+) -> ControllerDesign:
     """Design controller ``name`` (a key of CONTROLLERS) on ``model``; report its margins."""
     if name not in CONTROLLERS:
         raise ConfigError(f"unknown controller {name!r}; known: {', '.join(CONTROLLERS)}")
-    key = (model.gain_nm_per_v, model.effects, tuple(sorted(model.params.items())), name, axis,
-           tuple(sorted(options.items())))
+    key = (
+        model.gain_nm_per_v,
+        model.effects,
+        tuple(sorted(model.params.items())),
+        name,
+        axis,
+        tuple(sorted(options.items())),
+    )
     cached = _DESIGNS.get(key)
     if cached is None:
         gains = CONTROLLERS[name](model, axis=axis, **options)
-        cached = ControllerDesign(name, gains, check_gains(model, gains), check_gains(model, gains, delay_samples=1))
+        cached = ControllerDesign(
+            name, gains, check_gains(model, gains), check_gains(model, gains, delay_samples=1)
+        )
         _DESIGNS[key] = cached
     return cached
 
 
 # Designs are pure functions of (model, name, options) and take ~1 s: keep them.
 _DESIGNS: dict[tuple[Any, ...], ControllerDesign] = {}
+
+
+@dataclass(frozen=True, slots=True)
+class StepPrediction:
+    """Predicted step response of ``gains`` on the model's twin; arrays shape (n,).
+
+    ``theta_rad`` is where the load points; figures as in ``tracker simulate``.
+    """
+
+    t_s: FloatArray
+    target_rad: FloatArray
+    theta_rad: FloatArray
+    u_v: FloatArray
+    rise_time_s: float
+    overshoot_percent: float
+    settling_time_s: float
+    peak_command_v: float
+
+
+def predicted_step_response(
+    model: AxisModel,
+    gains: ControllerGains,
+    amplitude_rad: float,
+    duration_s: float = 1.5,
+    shaping: Any = None,
+) -> StepPrediction:
+    """Simulate a step of ``amplitude_rad`` at t = 0 on ``model`` (+ encoder quantization).
+
+    The full nonlinear loop (Coulomb, the ±10 V clip, the observer, anti-windup) runs, so the
+    preview shows what the rig would do. ``shaping`` (TrajectoryLimits) shapes the step as the
+    engine does; by default the raw step shows the feedback alone, which is what gains change.
+    """
+    from tracker.control.closed_loop import simulate_closed_loop
+
+    if not (math.isfinite(amplitude_rad) and amplitude_rad != 0.0):
+        raise ConfigError(f"step amplitude {amplitude_rad!r} rad must be a non-zero finite angle")
+    if not (math.isfinite(duration_s) and 0.05 <= duration_s <= 60.0):
+        raise ConfigError(f"step duration {duration_s!r} s must be within [0.05, 60] s")
+    n = int(round(duration_s / TS_S))
+    targets = np.full(n, float(amplitude_rad))
+    twin = model if model.has("quantization") else model.with_effect("quantization")
+    r = simulate_closed_loop(twin, model, gains, targets, TS_S, shaping=shaping)
+    y = r.load_theta_rad / amplitude_rad  # normalised: 0 → 1
+    above10 = np.flatnonzero(y >= 0.1)
+    above90 = np.flatnonzero(y >= 0.9)
+    rise = float((above90[0] - above10[0]) * TS_S) if above10.size and above90.size else math.inf
+    outside = np.flatnonzero(np.abs(y - 1.0) > 0.02)
+    settle = float((outside[-1] + 1) * TS_S) if outside.size else 0.0
+    if outside.size and outside[-1] == n - 1:
+        settle = math.inf
+    return StepPrediction(
+        r.t_s,
+        r.target_rad,
+        r.load_theta_rad,
+        r.u_v,
+        rise,
+        max(0.0, float(y.max()) - 1.0) * 100.0,
+        settle,
+        float(np.max(np.abs(r.u_v))),
+    )

@@ -7,7 +7,8 @@ Two lines of defence:
 2. :func:`guard_command`, the last line, runs after any controller: it predicts where the axis
    would stop if it braked now, from the *observed* velocity, the command latency and the
    deceleration the motor can surely deliver, and overrides the command with a full brake when
-   that stop point reaches the guard line; at the line it forbids any outward command.
+   that stop point reaches the guard line (``guard_margin_rad`` inside the limit); at rest near
+   the line it forbids outward commands, and past the line it pushes back at full command.
 
 The guard assumes that unmodelled torques (gravity, offset, ripple...) and a lower amplifier
 clip leave at least ``BRAKE_FRACTION`` of the nominal braking torque; a rig that breaks that
@@ -30,6 +31,8 @@ TARGET_MARGIN_RAD = math.radians(0.5)
 GUARD_MARGIN_RAD = math.radians(0.25)
 # Latency between deciding to brake and the torque acting: one sample plus slack for delay.
 GUARD_LATENCY_S = 0.004
+# The guard's own observer bandwidth: fixed, so that no gain setting can blind the last line.
+GUARD_OBSERVER_HZ = 40.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,36 +90,63 @@ def clamp_target(target_rad: float, lo_rad: float, hi_rad: float, margin_rad: fl
     return target_rad
 
 
+@njit(cache=True, inline="always")
+def _stop_point(theta: float, omega: float, accel_now: float, decel: float, latency: float) -> float:
+    """How far (rad, ≥ θ) an axis moving at ω ≥ 0 gets if it keeps accelerating at ``accel_now``
+    for ``latency`` s and then brakes at ``decel``."""
+    v = omega + accel_now * latency
+    if v < 0.0:
+        v = 0.0
+    return theta + omega * latency + 0.5 * accel_now * latency * latency + v * v / (2.0 * decel)
+
+
 @njit(cache=True)
 def guard_command(
     u_v: float,
-    theta_rad: float,
-    omega_rad_s: float,
+    theta_a: float,
+    omega_a: float,
+    theta_b: float,
+    omega_b: float,
     lo_rad: float,
     hi_rad: float,
     guard_margin_rad: float,
     decel_rad_s2: float,
     latency_s: float,
     u_max_v: float,
+    accel_per_v: float,
 ) -> float:
-    """The last line: ``u_v`` unless the axis would run past a soft limit; then a brake.
+    """The last line: ``u_v`` unless the axis could run past a soft limit; then a full brake.
 
-    ``theta_rad``/``omega_rad_s`` are the observed angle and velocity. Returns volts.
+    Two estimates of angle and velocity (a: the guard's observer, b: the encoder and its
+    one-sample difference) are combined pessimistically on each side. The stop point assumes
+    the command keeps accelerating the axis (``accel_per_v``·u, rad/s² per V) for ``latency_s``
+    before the brake acts. Returns volts.
     """
     if u_v != u_v:  # NaN from absurd gains: stop pushing
         u_v = 0.0
+    elif u_v > u_max_v:  # the amplifier clips anyway; absurd gains must not blind the estimate
+        u_v = u_max_v
+    elif u_v < -u_max_v:
+        u_v = -u_max_v
     hi = hi_rad - guard_margin_rad
     lo = lo_rad + guard_margin_rad
-    if omega_rad_s > 0.0:
-        stop = theta_rad + omega_rad_s * latency_s + omega_rad_s * omega_rad_s / (2.0 * decel_rad_s2)
-        if stop >= hi:
+    push = accel_per_v * u_v
+    th_hi = max(theta_a, theta_b)
+    om_hi = max(omega_a, omega_b, 0.0)
+    if th_hi >= hi:  # over the line (e.g. crept there under gravity): push back in
+        return -u_max_v
+    if _stop_point(th_hi, om_hi, max(push, 0.0), decel_rad_s2, latency_s) >= hi:
+        if om_hi > 0.0:
             return -u_max_v
-    elif omega_rad_s < 0.0:
-        stop = theta_rad + omega_rad_s * latency_s - omega_rad_s * omega_rad_s / (2.0 * decel_rad_s2)
-        if stop <= lo:
+        if u_v > 0.0:
+            return 0.0
+    th_lo = min(theta_a, theta_b)
+    om_lo = min(omega_a, omega_b, 0.0)
+    if th_lo <= lo:
+        return u_max_v
+    if -_stop_point(-th_lo, -om_lo, max(-push, 0.0), decel_rad_s2, latency_s) <= lo:
+        if om_lo < 0.0:
             return u_max_v
-    if theta_rad >= hi and u_v > 0.0:
-        return 0.0
-    if theta_rad <= lo and u_v < 0.0:
-        return 0.0
+        if u_v < 0.0:
+            return 0.0
     return u_v

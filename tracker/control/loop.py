@@ -11,7 +11,8 @@ and returns the command uₖ (V), held over [tₖ, tₖ₊₁):
    *observed* velocity ω̂ otherwise; the integrator stops while the command is saturated and its
    share is capped (anti-windup);
    law "seed_lead": u = C(z)(r − y), the seed's first-order lead on the raw encoder error;
-4. the soft-limit guard (:mod:`tracker.control.limits`), then the ±10 V clip;
+4. the soft-limit guard (:mod:`tracker.control.limits`) on its own fixed observer, then the
+   ±10 V clip;
 5. the observer predicts the next sample with the applied command.
 
 Parameters travel as one packed float vector (``CP``), state as another (``CS``), so the whole
@@ -29,6 +30,7 @@ from numpy.typing import NDArray
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
 from tracker.control.limits import (
     GUARD_LATENCY_S,
+    GUARD_OBSERVER_HZ,
     SoftLimits,
     brake_decel_rad_s2,
     clamp_target,
@@ -44,14 +46,42 @@ FloatArray = NDArray[np.float64]
 KIND_LEAD, KIND_PD = 0.0, 1.0
 # Packed controller parameters (literal indices keep numba's cache honest).
 C_KIND, C_DT, C_LG, C_LZ, C_LP = 0, 1, 2, 3, 4
-C_KP, C_KD, C_KI, C_ILIM, C_FJ, C_FB, C_FCP, C_FCN, C_BAND, C_FSCALE, C_VSRC = 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15
+C_KP, C_KD, C_KI, C_ILIM, C_FJ, C_FB, C_FCP, C_FCN, C_BAND, C_FSCALE, C_VSRC = (
+    5,
+    6,
+    7,
+    8,
+    9,
+    10,
+    11,
+    12,
+    13,
+    14,
+    15,
+)
 C_A, C_B, C_L = 16, 25, 28  # observer A (3x3 row-major), B (3), L (3)
 C_VMAX, C_AMAX, C_SHAPE = 31, 32, 33
 C_LO, C_HI, C_TMARG, C_GMARG, C_DECEL, C_LAT, C_UMAX, C_FF = 34, 35, 36, 37, 38, 39, 40, 41
-N_CP = 42
+C_GA, C_GB, C_GL = 42, 51, 54  # the guard's own observer (fixed bandwidth, not a tunable gain)
+C_KJ = 57  # K/J, rad/s² per V, for the guard's worst case
+N_CP = 58
 # Controller state.
-S_X, S_INT, S_PREVY, S_LE, S_LU, S_REF, S_PREVT, S_INIT, S_TH, S_OM, S_GUARD, S_U = 0, 3, 4, 5, 6, 7, 10, 11, 12, 13, 14, 15
-N_CS = 16
+S_X, S_INT, S_PREVY, S_LE, S_LU, S_REF, S_PREVT, S_INIT, S_TH, S_OM, S_GUARD, S_U = (
+    0,
+    3,
+    4,
+    5,
+    6,
+    7,
+    10,
+    11,
+    12,
+    13,
+    14,
+    15,
+)
+S_GX = 16
+N_CS = 19
 
 VELOCITY_OBSERVER, VELOCITY_DIFFERENCE = 0.0, 1.0
 
@@ -94,6 +124,10 @@ def pack_controller(
     cp[C_A : C_A + 9] = obs.a.reshape(-1)
     cp[C_B : C_B + 3] = obs.b
     cp[C_L : C_L + 3] = obs.l
+    guard_obs = design_observer(model, GUARD_OBSERVER_HZ, dt_s)
+    cp[C_GA : C_GA + 9] = guard_obs.a.reshape(-1)
+    cp[C_GB : C_GB + 3] = guard_obs.b
+    cp[C_GL : C_GL + 3] = guard_obs.l
     if shaping is not None:
         cp[C_VMAX], cp[C_AMAX], cp[C_SHAPE] = shaping.rate_rad_s, shaping.accel_rad_s2, 1.0
     else:
@@ -103,6 +137,7 @@ def pack_controller(
     cp[C_DECEL] = brake_decel_rad_s2(k, p["inertia.J"], AMPLIFIER_LIMIT_V)
     cp[C_LAT] = GUARD_LATENCY_S + p.get("delay.seconds", 0.0)
     cp[C_UMAX] = AMPLIFIER_LIMIT_V
+    cp[C_KJ] = k / p["inertia.J"]
     return cp
 
 
@@ -120,6 +155,13 @@ def _clip(x: float, lim: float) -> float:
     return x
 
 
+@njit(cache=True, inline="always")
+def _predict(a: FloatArray, b: FloatArray, x: FloatArray, th: float, om: float, d: float, u: float) -> None:
+    x[0] = a[0] * th + a[1] * om + a[2] * d + b[0] * u
+    x[1] = a[3] * th + a[4] * om + a[5] * d + b[1] * u
+    x[2] = a[6] * th + a[7] * om + a[8] * d + b[2] * u
+
+
 @njit(cache=True)
 def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: float) -> float:
     """One sample of the controller: encoder ``y_rad`` and ``target_rad`` in, command (V) out."""
@@ -134,6 +176,9 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
         cs[S_REF + 2] = 0.0
         cs[S_PREVT] = clamp_target(target_rad, cp[C_LO], cp[C_HI], cp[C_TMARG])
         cs[S_PREVY] = y_rad
+        cs[S_GX] = y_rad
+        cs[S_GX + 1] = 0.0
+        cs[S_GX + 2] = 0.0
         cs[S_INIT] = 1.0
     # 1. target → shaped reference.
     r = clamp_target(target_rad, cp[C_LO], cp[C_HI], cp[C_TMARG])
@@ -166,8 +211,16 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
         if cp[C_VSRC] == VELOCITY_DIFFERENCE:
             om_fb = (y_rad - cs[S_PREVY]) / dt
         e = ref_p - th
-        v_fric = ref_v if abs(ref_v) > cp[C_BAND] else om_fb
-        s = math.tanh(v_fric / cp[C_BAND])
+        band = cp[C_BAND]
+        if abs(ref_v) > band:
+            s = math.tanh(ref_v / band)  # the reference moves: feedforward its friction
+        else:
+            # At rest or creeping: compensate only motion the observer is sure of (beyond a
+            # dead zone of 2 bands), so estimation noise cannot excite a stick-slip hunt.
+            excess = abs(om_fb) - 2.0 * band
+            s = math.tanh(excess / band) if excess > 0.0 else 0.0
+            if om_fb < 0.0:
+                s = -s
         fc = cp[C_FCP] if s > 0.0 else cp[C_FCN]
         u_ff = cp[C_FF] * (cp[C_FJ] * ref_a + cp[C_FB] * ref_v) + cp[C_FSCALE] * fc * s
         u_i = cp[C_KI] * cs[S_INT]
@@ -178,17 +231,21 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
             if cp[C_KI] > 0.0:
                 cap = cp[C_ILIM] / cp[C_KI]
                 cs[S_INT] = _clip(cs[S_INT], cap)
-    cs[S_PREVY] = y_rad
-    # 4. the last line, then the amplifier's range.
-    ug = guard_command(u, th, om, cp[C_LO], cp[C_HI], cp[C_GMARG], cp[C_DECEL], cp[C_LAT], umax)
+    # 4. the last line, on its own observer (no gain can blind it), then the amplifier's range.
+    g_innov = y_rad - cs[S_GX]
+    g_th = cs[S_GX] + cp[C_GL] * g_innov
+    g_om = cs[S_GX + 1] + cp[C_GL + 1] * g_innov
+    g_d = cs[S_GX + 2] + cp[C_GL + 2] * g_innov
+    v_diff = (y_rad - cs[S_PREVY]) / dt
+    ug = guard_command(
+        u, g_th, g_om, y_rad, v_diff, cp[C_LO], cp[C_HI], cp[C_GMARG], cp[C_DECEL], cp[C_LAT], umax, cp[C_KJ]
+    )
     cs[S_GUARD] = 1.0 if ug != u else 0.0
+    cs[S_PREVY] = y_rad
     u = _clip(ug, umax)
-    # 5. observer prediction with the applied command.
-    a = cp[C_A : C_A + 9]
-    b = cp[C_B : C_B + 3]
-    cs[S_X] = a[0] * th + a[1] * om + a[2] * dist + b[0] * u
-    cs[S_X + 1] = a[3] * th + a[4] * om + a[5] * dist + b[1] * u
-    cs[S_X + 2] = a[6] * th + a[7] * om + a[8] * dist + b[2] * u
+    # 5. observer predictions with the applied command.
+    _predict(cp[C_A : C_A + 9], cp[C_B : C_B + 3], cs[S_X : S_X + 3], th, om, dist, u)
+    _predict(cp[C_GA : C_GA + 9], cp[C_GB : C_GB + 3], cs[S_GX : S_GX + 3], g_th, g_om, g_d, u)
     cs[S_TH] = th
     cs[S_OM] = om
     cs[S_U] = u

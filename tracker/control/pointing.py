@@ -62,7 +62,9 @@ class PointingScores:
         return {k: round(v, 4) for k, v in asdict(self).items()}
 
 
-def score_pass(axis: str, theta_rad: FloatArray, u_v: FloatArray, dt_s: float = 1e-3, offset_s: float = 0.0) -> PointingScores:
+def score_pass(
+    axis: str, theta_rad: FloatArray, u_v: FloatArray, dt_s: float = 1e-3, offset_s: float = 0.0
+) -> PointingScores:
     """Score the script pass that starts ``offset_s`` into the arrays (shape (n,))."""
     k0 = int(round(offset_s / dt_s))
 

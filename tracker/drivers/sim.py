@@ -173,14 +173,24 @@ class SimDriver:
         self._check_axis(axis)
         self._x[axis][:] = initial_state(theta_rad)
 
-    def run_closed_loop(self, axis: str, cp: FloatArray, cs: FloatArray, targets_rad: FloatArray) -> FloatArray:
+    def run_closed_loop(
+        self, axis: str, cp: FloatArray, cs: FloatArray, targets_rad: FloatArray
+    ) -> FloatArray:
         """The compiled fast path: see :class:`tracker.drivers.motor.ClosedLoopDriver`."""
         self._check_axis(axis)
         tgt = np.ascontiguousarray(targets_rad, dtype=float)
         rec = np.zeros((tgt.size, N_REC))
         n = run_chunk(
-            self._p[axis], cp, cs, self._x[axis], self._hist[axis], tgt, np.zeros(0),
-            self._enabled, self._hard[axis], rec,
+            self._p[axis],
+            cp,
+            cs,
+            self._x[axis],
+            self._hist[axis],
+            tgt,
+            np.zeros(0),
+            self._enabled,
+            self._hard[axis],
+            rec,
         )
         self._u[axis] = float(rec[n - 1, 1]) if n else 0.0
         if n < tgt.size:
@@ -191,7 +201,9 @@ class SimDriver:
     def _check_travel(self, axis: str) -> None:
         th = self._x[axis][2]
         if abs(th) > self._hard[axis]:
-            self.latch_fault(f"{axis}: over-travel at {math.degrees(th):.1f}° (end stop ±{math.degrees(self._hard[axis]):.1f}°)")
+            self.latch_fault(
+                f"{axis}: over-travel at {math.degrees(th):.1f}° (end stop ±{math.degrees(self._hard[axis]):.1f}°)"
+            )
             self._x[axis][1] = 0.0
             self._x[axis][3] = 0.0
 

@@ -1,0 +1,129 @@
+"""Soft limits: no target, gain or command passes them, whatever the twin hides (hypothesis)."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tracker.control.closed_loop import simulate_closed_loop
+from tracker.control.gains import LeadGains, ObserverPdGains
+from tracker.control.limits import SoftLimits, guard_command
+from tracker.control.trajectory import DEFAULT_LIMITS
+from tracker.plant.model import AxisModel
+
+DT = 1e-3
+
+# Hidden effects within the guard's stated assumption: disturbance torques and a lower amplifier
+# clip leave at least half the nominal braking torque, command delay ≤ 3 ms (limits.py).
+EFFECTS = {
+    "gravity": st.fixed_dictionaries(
+        {"gravity.torque": st.floats(0.0, 0.12), "gravity.phase": st.floats(-3.1, 3.1)}
+    ),
+    "offset": st.fixed_dictionaries({"offset.torque": st.floats(-0.06, 0.06)}),
+    "coulomb_asymmetry": st.fixed_dictionaries({"coulomb_asymmetry.negative": st.floats(0.02, 0.1)}),
+    "stiction": st.fixed_dictionaries({"stiction.static_torque": st.floats(0.06, 0.12)}),
+    "delay": st.fixed_dictionaries({"delay.seconds": st.floats(0.0, 0.003)}),
+    "saturation": st.fixed_dictionaries({"saturation.limit": st.floats(7.0, 10.0)}),
+    "ripple": st.fixed_dictionaries({"ripple.amplitude": st.floats(0.0, 0.03)}),
+}
+
+magnitude = st.floats(-3.0, 5.0).map(lambda e: 10.0**e)
+signed = st.tuples(magnitude, st.sampled_from([1.0, 1.0, 1.0, -1.0])).map(lambda p: p[0] * p[1])
+
+pd_gains = st.builds(
+    ObserverPdGains,
+    kp_v_per_rad=signed,
+    kd_v_s_per_rad=signed,
+    ki_v_per_rad_s=st.one_of(st.just(0.0), signed),
+    observer_bandwidth_hz=st.floats(0.2, 240.0),
+    feedforward=st.floats(-5.0, 5.0),
+    friction_comp=st.floats(-5.0, 5.0),
+    friction_band_rad_s=st.floats(1e-4, 1.0),
+    integral_limit_v=st.floats(0.0, 100.0),
+)
+lead_gains = st.builds(LeadGains, gain_v_per_rad=signed, zero=st.floats(-1.5, 1.5), pole=st.floats(-1.2, 1.2))
+
+
+@st.composite
+def twins(draw: st.DrawFn, axis: str) -> AxisModel:
+    names = draw(st.lists(st.sampled_from(sorted(EFFECTS)), unique=True, max_size=4))
+    params: dict[str, float] = {}
+    for n in names:
+        params.update(draw(EFFECTS[n]))
+    return AxisModel.for_axis(axis, ["quantization", *names], params)
+
+
+@st.composite
+def target_runs(draw: st.DrawFn, limit_rad: float) -> np.ndarray:
+    """Piecewise targets over 3 s: holds, jumps and fast sines, often far past the limits."""
+    n = 3000
+    out = np.empty(n)
+    k = 0
+    while k < n:
+        length = min(draw(st.integers(50, 1500)), n - k)
+        kind = draw(st.sampled_from(["hold", "sine", "huge"]))
+        t = np.arange(length) * DT
+        if kind == "hold":
+            out[k : k + length] = draw(st.floats(-3 * limit_rad, 3 * limit_rad))
+        elif kind == "sine":
+            amp = draw(st.floats(0.0, 3 * limit_rad))
+            out[k : k + length] = amp * np.sin(2 * math.pi * draw(st.floats(0.1, 20.0)) * t)
+        else:
+            out[k : k + length] = draw(st.sampled_from([1e6, -1e6, np.nan, np.inf]))
+        k += length
+    return out
+
+
+@pytest.mark.parametrize("axis", ["pan", "tilt"])
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
+)
+@given(data=st.data())
+def test_no_target_gain_or_hidden_effect_passes_the_soft_limit(axis: str, data: st.DataObject) -> None:
+    limits = SoftLimits.for_axis(axis)
+    lim = limits.upper_rad
+    plant = data.draw(twins(axis), label="twin")
+    gains = data.draw(st.one_of(pd_gains, lead_gains), label="gains")
+    targets = data.draw(target_runs(lim), label="targets")
+    shaped = data.draw(st.booleans(), label="shaped")
+    theta0 = data.draw(st.floats(-lim + 0.02, lim - 0.02), label="theta0")
+    r = simulate_closed_loop(
+        plant,
+        AxisModel.for_axis(axis),
+        gains,
+        targets,
+        DT,
+        limits,
+        DEFAULT_LIMITS[axis] if shaped else None,
+        theta0_rad=theta0,
+    )
+    assert np.all(np.isfinite(r.u_v)) and np.all(np.abs(r.u_v) <= 10.0)
+    worst = float(np.max(np.abs(r.load_theta_rad)))
+    assert worst <= lim, f"reached {math.degrees(worst):.3f}° past ±{math.degrees(lim):.0f}°"
+
+
+def test_guard_brakes_when_the_stop_point_reaches_the_limit() -> None:
+    lim = 1.0
+    decel = 100.0
+    # 2 rad/s needs 0.02 rad to stop at 100 rad/s²: 0.985 rad is too close, 0.9 is not.
+    assert guard_command(5.0, 0.985, 2.0, 0.985, 2.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == -10.0
+    assert guard_command(5.0, 0.9, 2.0, 0.9, 2.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == 5.0
+    assert guard_command(-5.0, -0.985, -2.0, -0.985, -2.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == 10.0
+    # The pessimistic pair: the encoder's difference says 2 rad/s even if the observer lags.
+    assert guard_command(5.0, 0.985, 0.0, 0.985, 2.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == -10.0
+    # Near the line and at rest: outward commands are refused, inward ones pass.
+    assert guard_command(3.0, 0.999, 0.0, 0.999, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, 50.0) == 0.0
+    assert guard_command(-3.0, 0.999, 0.0, 0.999, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, 50.0) == -3.0
+    # Past the line (crept there): full push back, whatever the controller asks.
+    assert guard_command(0.0, 1.001, 0.0, 1.001, 0.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == -10.0
+    assert guard_command(float("nan"), 0.0, 0.0, 0.0, 0.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == 0.0
+
+
+def test_guard_counts_on_the_push_of_the_current_command_during_the_latency() -> None:
+    lim, decel, k_over_j = 1.0, 100.0, 50.0
+    # At rest 0.99 rad: 0 V is fine, but 10 V for 4 ms first (2 rad/s, 4 mrad) then braking crosses.
+    assert guard_command(0.0, 0.99, 0.0, 0.99, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 0.0
+    assert guard_command(10.0, 0.99, 0.0, 0.99, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 0.0
+    assert guard_command(1e9, 0.5, 0.0, 0.5, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 10.0
