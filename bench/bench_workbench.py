@@ -1,0 +1,141 @@
+"""Workbench benchmark: fit and compare time for 30 s at 1 kHz, parameter recovery, and EMPS figures.
+
+Run: ``.venv/bin/python bench/bench_workbench.py`` (add ``--quick`` to skip the per-effect table).
+Times are the median of 3 runs after a warm-up (numba compiles once and caches).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+import time
+from collections.abc import Callable
+
+from tracker.plant.model import AxisModel
+from tracker.workbench.compare import compare_model
+from tracker.workbench.data import Measurement
+from tracker.workbench.emps import DEFAULT_DATA_DIR, PUBLISHED_PARAMS, emps_model, load_emps
+from tracker.workbench.excite import closed_loop_log
+from tracker.workbench.fit import fit_model
+
+RECOVERY = {
+    "base": {},
+    "offset": {"offset.torque": 0.012},
+    "gravity": {"gravity.torque": 0.06, "gravity.phase": 0.5},
+    "coulomb_asymmetry": {"coulomb_asymmetry.negative": 0.075},
+    "viscous_asymmetry": {"viscous_asymmetry.negative": 2.5e-3},
+    "stiction": {"stiction.static_torque": 0.085, "stiction.velocity": 0.08},
+    "delay": {"delay.seconds": 0.014},
+    "saturation": {"saturation.limit": 3.0},
+    "ripple": {"ripple.amplitude": 0.012, "ripple.cycles_per_rev": 21.0, "ripple.phase": -0.7},
+    "compliance": {"compliance.frequency": 15.0, "compliance.damping": 0.1},
+    "backlash": {"backlash.width": 0.01},
+}
+PERTURBED = {"inertia.J": 1.25, "viscous.b": 0.7, "coulomb.torque": 1.35}
+
+
+def timed(fn: Callable[[], object], repeats: int = 3) -> float:
+    """Median wall time (s) of ``fn`` after one warm-up call."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def start_model(effects: tuple[str, ...]) -> AxisModel:
+    pan = AxisModel.for_axis("pan", effects)
+    return pan.with_params({k: pan.params[k] * f for k, f in PERTURBED.items()})
+
+
+def speed(meas: Measurement) -> None:
+    base = start_model(("offset",))
+    print("== speed: 30 s at 1 kHz, pan + offset, closed loop ==")
+    print(f"fit (k-step, default horizon)       {timed(lambda: fit_model(meas, base)):6.3f} s   (target <= 1 s)")
+    print(f"fit (inverse dynamics only)         {timed(lambda: fit_model(meas, base, method='inverse_dynamics')):6.3f} s")
+    print(f"compare (k-step, with breakdown)    {timed(lambda: compare_model(meas, base)):6.3f} s")
+    print(f"compare (free simulation)           {timed(lambda: compare_model(meas, base, mode='free')):6.3f} s")
+    diagnose_hook(meas)
+
+
+def diagnose_hook(meas: Measurement) -> None:
+    """Diagnose time (the diagnosis engineer fills this in)."""
+    return None
+
+
+def recovery() -> None:
+    print("\n== parameter recovery: hidden effect, 30 s closed loop, 0.5 mN·m disturbance, start 25-40 % off ==")
+    print(f"{'effect':<18} {'time s':>6} {'fit %':>8} {'inc. fit %':>10}  worst error of the effect's parameters")
+    for effect, params in RECOVERY.items():
+        effects = () if effect == "base" else (effect,)
+        true = AxisModel.for_axis("pan", ("quantization", *effects), params)
+        meas = closed_loop_log(true, duration_s=30.0, seed=11, disturbance_nm=0.0005)
+        t0 = time.perf_counter()
+        res = fit_model(meas, start_model(effects))
+        el = time.perf_counter() - t0
+        names = list(params) or ["inertia.J", "viscous.b", "coulomb.torque"]
+        errs = []
+        for n in names:
+            if n.endswith(".phase"):
+                errs.append(f"{n} {math.remainder(res.params[n] - true.params[n], 2 * math.pi):+.3f} rad")
+            else:
+                errs.append(f"{n} {100 * (res.params[n] / true.params[n] - 1):+.1f} %")
+        print(f"{effect:<18} {el:6.2f} {res.fit_percent:8.3f} {res.fit_percent_increment:10.2f}  " + ", ".join(errs))
+
+
+def emps() -> None:
+    path = DEFAULT_DATA_DIR / "DATA_EMPS.mat"
+    if not path.exists():
+        print(f"\n(EMPS data not found at {path})")
+        return
+    meas, gain = load_emps(path)
+    print(f"\n== EMPS (DATA_EMPS.mat, {meas.n} samples, gtau = {gain:.4g} N/V), base + offset ==")
+    pub = AxisModel.create(gain, PUBLISHED_PARAMS, ("offset",))
+    start = emps_model(("offset",), gain)
+    before = compare_model(meas, start)
+    print(
+        f"catalogue defaults (before fit): fit {before.fit_percent:8.3f} %  increment fit {before.fit_percent_increment:8.2f} %"
+    )
+    c = compare_model(meas, pub)
+    print(f"published parameters:            fit {c.fit_percent:8.3f} %  increment fit {c.fit_percent_increment:8.2f} %")
+    print(f"{'':<26}" + "".join(f"{n:>22}" for n in PUBLISHED_PARAMS))
+    print(f"{'published':<26}" + "".join(f"{v:22.4f}" for v in PUBLISHED_PARAMS.values()))
+    for label, kwargs in (
+        ("inverse dynamics", {"method": "inverse_dynamics"}),
+        ("k-step 30 ms (default)", {}),
+        ("k-step 10 ms", {"horizon_s": 0.01}),
+        ("k-step 50 ms", {"horizon_s": 0.05}),
+        ("k-step 100 ms", {"horizon_s": 0.1}),
+    ):
+        res = fit_model(meas, start, **kwargs)  # type: ignore[arg-type]
+        row = "".join(
+            f"{res.params[n]:10.4f} ({100 * (res.params[n] / v - 1):+5.2f}%)" for n, v in PUBLISHED_PARAMS.items()
+        )
+        print(f"{label:<26}{row}   fit {res.fit_percent:.3f} % / inc {res.fit_percent_increment:.2f} %")
+        if not kwargs:
+            se = ", ".join(f"{n} ± {res.stderr[n]:.3g}" for n in PUBLISHED_PARAMS)
+            print(f"{'':<26}stderr: {se}; relative force error of the ID step {res.inverse_dynamics_error_percent:.2f} %")
+    for extra in ("viscous_asymmetry", "coulomb_asymmetry"):
+        res = fit_model(meas, emps_model(("offset", extra), gain))
+        vals = ", ".join(f"{k} {res.params[k]:.4g}" for k in res.free)
+        print(f"+ {extra:<24}fit {res.fit_percent:.3f} % / inc {res.fit_percent_increment:.2f} %: {vals}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--quick", action="store_true", help="skip the parameter-recovery table")
+    args = ap.parse_args(argv)
+    base = AxisModel.for_axis("pan", ("quantization", "offset"), {"offset.torque": 0.01})
+    speed(closed_loop_log(base, duration_s=30.0, seed=1, disturbance_nm=0.001))
+    if not args.quick:
+        recovery()
+    emps()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
