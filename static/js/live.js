@@ -38,7 +38,7 @@ export function init(s) {
   let counted = 0;
   setInterval(() => { $("conn-rate").textContent = `${frames - counted} Hz`; counted = frames; }, 1000);
   loadPresets();
-  setupViewer();
+  setTimeout(setupViewer, 800);  // let the console draw first; the 3D view's bundle is heavy
 }
 
 export function show() {}
