@@ -79,7 +79,7 @@ class EngineConfig:
     chunk_s: float = 0.01
     shaping: dict[str, TrajectoryLimits] = field(default_factory=lambda: dict(DEFAULT_LIMITS))
     models: dict[str, AxisModel] | None = None
-    enable_on_start: bool = True
+    enable_on_start: bool = True  # enable the driver when run() starts the first time
 
 
 class TelemetrySubscription:
@@ -168,6 +168,8 @@ class Engine:
         self._stop = False
         self._running = False
         self._initialised = False
+        self._talker_fresh = False  # the source gave a target in the latest chunk
+        self._ran = False  # enable_on_start applies to the first run only
 
     # -- control surface --------------------------------------------------------------------
     @property
@@ -292,8 +294,6 @@ class Engine:
             return "tracking"
         return "hold"
 
-    _talker_fresh = False
-
     # -- the loop ---------------------------------------------------------------------------
     async def run(self, realtime: bool = True, duration_s: float | None = None) -> None:
         """Run until ``stop()`` or ``duration_s`` of engine time have passed."""
@@ -301,7 +301,13 @@ class Engine:
             raise ConfigError("engine is already running")
         self._running = True
         self._stop = False
-        if self.config.enable_on_start and not self._driver.enabled and not self._driver.faults():
+        first_run, self._ran = not self._ran, True
+        if (
+            first_run
+            and self.config.enable_on_start
+            and not self._driver.enabled
+            and not self._driver.faults()
+        ):
             try:
                 self._driver.enable()
             except DriverFault:
@@ -371,7 +377,11 @@ class Engine:
     def _chunk_targets(self, n: int) -> dict[str, np.ndarray]:
         start = dict(self._last_target)
         self._talker_fresh = False
-        if self._manual:
+        if not self._driver.enabled and not self._manual:
+            # Disabled or faulted: hold wherever the axes are, so re-enabling does not jump.
+            for a, ax in self._axes.items():
+                self._last_target[a] = ax.y_rad
+        elif self._manual:
             for a, (rate, deadline) in list(self._jog.items()):
                 if self._t >= deadline:
                     del self._jog[a]

@@ -100,3 +100,89 @@ def test_recording_gives_a_log_per_axis() -> None:
     assert set(logs) == {"pan", "tilt"}
     assert logs["pan"].n == 500 and logs["pan"].dt_s == pytest.approx(1e-3)
     assert logs["pan"].theta_rad[-1] > 0.1
+
+
+class ProtocolOnly:
+    """The rig seen only through the MotorDriver Protocol (no compiled fast path)."""
+
+    def __init__(self, rig: SimDriver) -> None:
+        self.rig = rig
+        self.axes = rig.axes
+        self.sample_period_s = rig.sample_period_s
+
+    @property
+    def enabled(self) -> bool:
+        return self.rig.enabled
+
+    def enable(self) -> None:
+        self.rig.enable()
+
+    def disable(self) -> None:
+        self.rig.disable()
+
+    def command(self, axis: str, volts: float) -> None:
+        self.rig.command(axis, volts)
+
+    def read_encoder(self, axis: str) -> float:
+        return self.rig.read_encoder(axis)
+
+    def tick(self) -> None:
+        self.rig.tick()
+
+    def faults(self) -> tuple[str, ...]:
+        return self.rig.faults()
+
+    def clear_faults(self) -> None:
+        self.rig.clear_faults()
+
+
+def test_a_driver_without_the_fast_path_gives_the_same_run() -> None:
+    fast_rig, slow_rig = SimDriver(), SimDriver()
+    fast, slow = Engine(fast_rig), Engine(ProtocolOnly(slow_rig))  # type: ignore[arg-type]
+    for e in (fast, slow):
+        e.point(math.radians(15.0), math.radians(5.0))
+        run(e, 0.3)
+    for axis in ("pan", "tilt"):
+        assert slow_rig.load_angle_rad(axis) == pytest.approx(fast_rig.load_angle_rad(axis), abs=1e-12)
+
+
+def test_a_latched_fault_shows_as_fault_mode_and_the_rig_stops_driving() -> None:
+    drv = SimDriver()
+    e = Engine(drv)
+    e.point(math.radians(40.0), 0.0)
+    run(e, 0.1)
+    drv.latch_fault("pan: amplifier over-temperature (injected)")
+    snap = e.step_chunk()
+    assert snap.mode == "fault" and snap.pan_u_v == 0.0 and snap.tilt_u_v == 0.0
+    assert "over-temperature" in e.status().faults[0]
+
+
+def test_re_enabling_after_a_disable_holds_where_the_axis_is() -> None:
+    drv = SimDriver()
+    e = Engine(drv)
+    e.set_tracking(True)
+    e.set_target_source(FunctionTarget(lambda t: (0.4, 0.0)))
+    run(e, 1.0)
+    drv.disable()
+    e.set_tracking(False)
+    run(e, 0.2)
+    assert e.status().mode == "disabled"
+    here = drv.load_angle_rad("pan")
+    drv.enable()
+    run(e, 0.5)
+    assert e.status().mode == "hold"
+    assert drv.load_angle_rad("pan") == pytest.approx(here, abs=1e-3)
+
+
+def test_tracking_without_a_target_holds() -> None:
+    e = Engine(SimDriver())
+    e.set_target_source(FunctionTarget(lambda t: None))
+    e.set_tracking(True)
+    run(e, 0.1)
+    assert e.status().mode == "hold"
+
+
+def test_jog_faster_than_the_axis_rate_limit_is_refused() -> None:
+    e = Engine(SimDriver())
+    with pytest.raises(ConfigError, match="rate limit"):
+        e.jog("tilt", 10.0)

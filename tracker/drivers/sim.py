@@ -202,7 +202,8 @@ class SimDriver:
         th = self._x[axis][2]
         if abs(th) > self._hard[axis]:
             self.latch_fault(
-                f"{axis}: over-travel at {math.degrees(th):.1f}° (end stop ±{math.degrees(self._hard[axis]):.1f}°)"
+                f"{axis}: over-travel at {math.degrees(th):.1f}° "
+                f"(end stop ±{math.degrees(self._hard[axis]):.1f}°)"
             )
             self._x[axis][1] = 0.0
             self._x[axis][3] = 0.0
