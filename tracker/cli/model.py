@@ -194,8 +194,54 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
 
     ---- DIAGNOSE: owned by the diagnosis engineer; edit only inside this function ----
     Use :func:`_add_common` for the shared options and :func:`model_from_args` for the model.
+
+    ``tracker model diagnose DATA.csv --axis pan|tilt [--effects a,b] [--gain K] [--json]``:
+    ranks every effect the model lacks; ``--json`` prints the contract object
+    ``{"fit_percent", "verdict", "candidates": [...]}`` (plus ``notes``).
     """
-    return None
+    import textwrap
+
+    from tracker.workbench.diagnose import Candidate, Diagnosis, diagnose
+
+    def card(i: int, c: Candidate, width: int = 100) -> list[str]:
+        mark = "SIGNIFICANT" if c.significant else "not significant"
+        out = [f"{i}. {c.effect}  —  {mark}; fit with it {c.fit_percent:.3f} %"]
+        for k, v in c.params.items():
+            se = c.stderr.get(k)
+            se_txt = f" ± {se:.3g}" if se is not None and math.isfinite(se) else ""
+            out.append(f"     {k} = {v:.5g}{se_txt} {get_param(k).unit}")
+        out += textwrap.wrap(c.evidence, width, initial_indent="     ", subsequent_indent="     ")
+        if c.confused_with:
+            out.append(f"     looks like: {', '.join(c.confused_with)}")
+        if c.significant and c.experiment:
+            out += textwrap.wrap("to confirm: " + c.experiment, width, initial_indent="     ",
+                                 subsequent_indent="     ")
+        return out
+
+    def format_diagnosis(meas: Measurement, model: AxisModel, d: Diagnosis) -> str:
+        verdict = (f"VERDICT: the model is missing {d.verdict}" if d.verdict
+                   else "VERDICT: nothing significant is missing")
+        lines = [_header(meas, model), f"current model: fit {d.fit_percent:.3f} % (k-step)", verdict, ""]
+        for i, c in enumerate(d.candidates, start=1):
+            lines += card(i, c)
+        if d.notes:
+            lines += ["", "notes:"]
+            for n in d.notes:
+                lines += textwrap.wrap(n, 100, initial_indent="  - ", subsequent_indent="    ")
+        lines.append(f"({d.elapsed_s:.2f} s)")
+        return "\n".join(lines)
+
+    @_guard
+    def run_diagnose(args: argparse.Namespace) -> int:
+        meas = read_log(args.data)
+        model = model_from_args(args)
+        d = diagnose(meas, model, horizon_s=args.horizon)
+        print(_json(d.to_dict()) if args.json else format_diagnosis(meas, model, d))
+        return 0
+
+    d = sub.add_parser("diagnose", help="rank the effects the model lacks and name the missing one")
+    _add_common(d)
+    d.set_defaults(func=run_diagnose)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

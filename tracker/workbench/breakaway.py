@@ -24,6 +24,8 @@ from tracker.workbench.data import Measurement
 FloatArray = NDArray[np.float64]
 MIN_REST_S = 0.05
 PRE_S = (0.008, 0.002)  # command averaged over this window before the first count change
+MIN_SHARE = 0.5  # the command before a start must reach this share of the Coulomb torque
+MAX_JUMP_V = 0.3  # ... and must not have jumped by more than this over the last ~30 ms
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,6 +87,12 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
         u_b = float(np.mean(u[e - pre0 : e - pre1]))
         tt = np.arange(slope_n) * dt
         du = float(np.polyfit(tt, u[e - pre1 - slope_n : e - pre1], 1)[0])
+        # Only starts where the command crept up to the threshold say what the threshold is
+        # (after a command step the axis starts at once, whatever its break-away torque).
+        early = float(np.mean(u[e - pre0 - slope_n : e - pre1 - slope_n]))
+        jump = abs(u_b - early)
+        if s * k_gain * u_b < MIN_SHARE * min(fc_pos, fc_neg) or jump > MAX_JUMP_V:
+            continue
         tau_o = float(_other_torque(model, np.array([th[e - 1]]))[0])
         thr = fc_pos if s > 0 else fc_neg
         ex.append(s * (k_gain * u_b - tau_o) - thr)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -68,6 +68,7 @@ class EvidenceContext:
     base_reg: Regression
     breakaway: BreakAway | None
     model: AxisModel
+    rest_share: tuple[float, float] = (0.0, 0.0)  # (share of k-step error, share of windows) from rest
 
     def confusions(self, effect: str, significant: Sequence[str]) -> tuple[str, ...]:
         """Look-alike effects of ``effect`` (those also significant first)."""
@@ -110,9 +111,9 @@ def _resonance(ctx: EvidenceContext) -> tuple[float, float]:
     return float(f[band][i]), float(p[band][i] / (np.median(p[band]) or 1.0))
 
 
-def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext) -> str:
-    """One sentence of evidence with numbers for ``effect``."""
-    p, d = scr.params, scr.detail
+def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, params: Mapping[str, float]) -> str:
+    """One sentence of evidence with numbers for ``effect`` (``params``: the candidate's final values)."""
+    p, d = params, scr.detail
     sig = ctx.sig
     om = sig.omega_rad_s
     tail = (f"; explains {100 * scr.gain_cv:.0f} % of the held-out residual torque, "
@@ -144,15 +145,14 @@ def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext) ->
                 f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
                 f"{1e3 * p['ripple.amplitude']:.1f} mN·m" + tail)
     if effect == "stiction":
-        low = np.abs(om) < max(3 * p.get("stiction.velocity", 0.05), 1e-3)
-        e, tfrac = ctx.concentration(low)
+        e, tfrac = ctx.rest_share
         ba = ctx.breakaway
         extra = ""
         if ba is not None:
             extra = (f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {1e3 * ba.static_excess_se:.1f} "
                      f"over Coulomb in {ba.count} starts")
-        return (f"error concentrates at low speed ({100 * e:.0f} % of the residual torque in "
-                f"{100 * tfrac:.0f} % of the moving time){extra}; break-away "
+        return (f"error concentrates at starts from rest ({100 * e:.0f} % of the prediction error in the "
+                f"{100 * tfrac:.0f} % of windows that start at rest){extra}; break-away "
                 f"{1e3 * p['stiction.static_torque']:.1f} mN·m, Stribeck velocity {p['stiction.velocity']:.3g} rad/s" + tail)
     if effect == "delay":
         ba = ctx.breakaway

@@ -1,0 +1,316 @@
+"""The seed's friction-identification experiment, automated on any motor driver (seed §3.1, App. B/C).
+
+For each direction: a slow voltage ramp from rest finds the break-away voltage (stiction shows
+as break-away torque above the Coulomb intercept; a transport delay does not change it on a
+slow ramp). Then constant voltages, each started with the seed's 10 V break-away pulse, give
+one point (average velocity, torque K·V) each; a line per direction (the seed's ``polyfit``,
+App. C) gives the viscous slope and the Coulomb intercept.
+
+A mount has end stops, and the twin's time constant J/b (≈ 3 s on pan) is longer than a pass
+over the travel, so a run may end before the velocity is steady. The pulse is therefore sized
+to bring the axis near the speed the voltage will hold (shortened from 0.25 s when that is
+enough), each pass starts at one end of the travel, and each point's torque is corrected for
+whatever acceleration remains: τ = K·V − J·α̅ (α̅ = 0 at a true steady state, where this is
+exactly the seed's method). J comes from the model (datasheet/CAD), as in the seed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.drivers.motor import MotorDriver
+from tracker.errors import DataError, JobCancelled
+from tracker.plant.params import get_preset
+from tracker.units import AMPLIFIER_LIMIT_V
+
+FloatArray = NDArray[np.float64]
+SEED_PULSE_V = 10.0
+SEED_PULSE_S = 0.25
+SETTLE_S = 0.03
+MIN_MEASURE_S = 0.15
+RAMP_V_PER_S = 0.3
+TRAVEL_FRACTION = 0.85
+MAX_RUN_S = 1.0  # measured part of a run; long enough to average, short enough to be quick
+
+
+@dataclass(frozen=True, slots=True)
+class FrictionPoint:
+    """One constant-voltage run: the voltage, the mean velocity and the friction torque there."""
+
+    volts: float
+    velocity_rad_s: float
+    torque_nm: float
+    accel_rad_s2: float
+    moved: bool
+    too_fast: bool = False
+
+    def to_dict(self) -> dict[str, object]:
+        return {"volts": self.volts, "velocity_rad_s": self.velocity_rad_s, "torque_nm": self.torque_nm,
+                "accel_rad_s2": self.accel_rad_s2, "moved": self.moved, "too_fast": self.too_fast}
+
+
+@dataclass(frozen=True, slots=True)
+class FrictionLine:
+    """torque = viscous·ω + sign·coulomb for one direction, with standard errors."""
+
+    viscous_nm_s_per_rad: float
+    coulomb_nm: float
+    viscous_se: float
+    coulomb_se: float
+    points: int
+
+
+@dataclass(frozen=True, slots=True)
+class FrictionResult:
+    """Per-direction friction lines, break-away torques and the torque-vs-velocity points."""
+
+    axis: str
+    gain_nm_per_v: float
+    positive: FrictionLine
+    negative: FrictionLine
+    breakaway_positive_nm: float
+    breakaway_negative_nm: float
+    points: tuple[FrictionPoint, ...]
+    simulated_s: float
+
+    @property
+    def params(self) -> dict[str, float]:
+        """Model parameters: positive direction in the base names, negative in the asymmetries."""
+        return {
+            "viscous.b": self.positive.viscous_nm_s_per_rad,
+            "coulomb.torque": self.positive.coulomb_nm,
+            "viscous_asymmetry.negative": self.negative.viscous_nm_s_per_rad,
+            "coulomb_asymmetry.negative": self.negative.coulomb_nm,
+        }
+
+    def stiction_excess_nm(self) -> tuple[float, float]:
+        """Break-away torque above the Coulomb intercept, (positive, negative) direction."""
+        return (self.breakaway_positive_nm - self.positive.coulomb_nm,
+                self.breakaway_negative_nm - self.negative.coulomb_nm)
+
+    def shows_stiction(self) -> bool:
+        """True when break-away needs clearly more torque than Coulomb in both directions."""
+        ep, en = self.stiction_excess_nm()
+        tol_p = max(3 * self.positive.coulomb_se, 0.05 * self.positive.coulomb_nm)
+        tol_n = max(3 * self.negative.coulomb_se, 0.05 * self.negative.coulomb_nm)
+        return ep > tol_p and en > tol_n
+
+    def to_dict(self) -> dict[str, object]:
+        def line(li: FrictionLine) -> dict[str, float]:
+            return {"viscous_nm_s_per_rad": li.viscous_nm_s_per_rad, "coulomb_nm": li.coulomb_nm,
+                    "viscous_se": li.viscous_se, "coulomb_se": li.coulomb_se, "points": li.points}
+
+        ep, en = self.stiction_excess_nm()
+        return {
+            "axis": self.axis,
+            "gain_nm_per_v": self.gain_nm_per_v,
+            "positive": line(self.positive),
+            "negative": line(self.negative),
+            "breakaway_nm": {"positive": self.breakaway_positive_nm, "negative": self.breakaway_negative_nm},
+            "stiction_excess_nm": {"positive": ep, "negative": en},
+            "shows_stiction": self.shows_stiction(),
+            "params": self.params,
+            "plot": {"velocity_rad_s": [p.velocity_rad_s for p in self.points if p.moved],
+                     "torque_nm": [p.torque_nm for p in self.points if p.moved]},
+            "points": [p.to_dict() for p in self.points],
+            "simulated_s": self.simulated_s,
+        }
+
+
+class _Axis:
+    """One axis of a driver, sampled: command, tick, read; cancel and progress checks."""
+
+    def __init__(self, driver: MotorDriver, axis: str, cancel: Callable[[], bool] | None) -> None:
+        self.d, self.axis, self.cancel = driver, axis, cancel
+        self.dt = driver.sample_period_s
+        self.ticks = 0
+
+    def step(self, volts: float) -> float:
+        if self.cancel is not None and self.ticks % 100 == 0 and self.cancel():
+            self.d.command(self.axis, 0.0)
+            self.d.disable()
+            raise JobCancelled("friction identification cancelled")
+        self.d.command(self.axis, max(-AMPLIFIER_LIMIT_V, min(AMPLIFIER_LIMIT_V, float(volts))))
+        self.d.tick()
+        self.ticks += 1
+        return self.d.read_encoder(self.axis)
+
+    def hold(self, seconds: float) -> float:
+        th = self.d.read_encoder(self.axis)
+        for _ in range(int(round(seconds / self.dt))):
+            th = self.step(0.0)
+        return th
+
+    def move_to(self, target_rad: float, gain: float, inertia: float, max_s: float = 3.0) -> float:
+        """PD move to ``target_rad`` (20 rad/s loop), then let it settle with 0 V."""
+        wn = 20.0
+        kp, kd = wn * wn * inertia / gain, 2 * 0.8 * wn * inertia / gain
+        th = prev = self.d.read_encoder(self.axis)
+        vel = 0.0
+        a = math.exp(-2 * math.pi * 50.0 * self.dt)
+        still = 0
+        for _ in range(int(round(max_s / self.dt))):
+            th = self.step(kp * (target_rad - th) - kd * vel)
+            vel = a * vel + (1 - a) * (th - prev) / self.dt
+            still = still + 1 if th == prev else 0
+            prev = th
+            # Friction leaves a small steady error without integral action: near and still is done.
+            if abs(target_rad - th) < 0.15 and still * self.dt > 0.02:
+                break
+        return self.hold(0.05)
+
+
+def _breakaway_volts(ax: _Axis, s: float, start_v: float, step_rad: float) -> float:
+    """Ramp the command from ``start_v`` in direction ``s`` until the axis moves; return |V|."""
+    th0 = ax.d.read_encoder(ax.axis)
+    v = start_v
+    for _ in range(int(round(AMPLIFIER_LIMIT_V / RAMP_V_PER_S / ax.dt))):
+        v += RAMP_V_PER_S * ax.dt
+        th = ax.step(s * v)
+        if abs(th - th0) > step_rad:
+            ax.step(0.0)
+            return v
+    raise DataError(f"{ax.axis}: the axis did not move with {AMPLIFIER_LIMIT_V:g} V; is the amplifier enabled?")
+
+
+def _constant_voltage_run(ax: _Axis, s: float, volts: float, pulse_s: float, end_rad: float,
+                          gain: float, inertia: float, max_s: float) -> FrictionPoint:
+    """The seed's run: 10 V pulse, then constant ``volts``; mean velocity and corrected torque."""
+    n_pulse = max(1, int(round(pulse_s / ax.dt)))
+    for _ in range(n_pulse):
+        ax.step(s * SEED_PULSE_V)
+    for _ in range(int(round(SETTLE_S / ax.dt))):
+        ax.step(s * volts)
+    th = [ax.d.read_encoder(ax.axis)]
+    for _ in range(int(round(max_s / ax.dt))):
+        th.append(ax.step(s * volts))
+        if s * (th[-1] - end_rad) > 0:
+            break
+        if len(th) > 100 and th[-1] == th[-51]:
+            break  # stopped: friction won
+    ax.step(0.0)
+    y = np.asarray(th)
+    t = np.arange(y.size) * ax.dt
+    stopped = y.size > 100 and y[-1] == y[-51]
+    if stopped or abs(y[-1] - y[0]) < 0.02:
+        return FrictionPoint(s * volts, 0.0, gain * s * volts, 0.0, False)
+    c2, c1, _ = np.polyfit(t - t.mean(), y, 2)
+    accel = 2 * c2
+    torque = gain * s * volts - inertia * accel
+    # Too fast: crossed the travel before a settled measurement; kept for the voltage search.
+    fast = y.size * ax.dt < MIN_MEASURE_S
+    return FrictionPoint(s * volts, float(c1), float(torque), float(accel), not fast, fast)
+
+
+def _fit_line(points: list[FrictionPoint], s: float) -> FrictionLine:
+    pts = [p for p in points if p.moved and p.velocity_rad_s * s > 0]
+    if len(pts) < 3:
+        raise DataError(f"friction ID: only {len(pts)} moving runs in the {'positive' if s > 0 else 'negative'} "
+                        "direction; need 3 (widen the voltage range)")
+    w = np.array([p.velocity_rad_s for p in pts])
+    tq = np.array([p.torque_nm for p in pts])
+    coef, cov = np.polyfit(w, tq, 1, cov=True) if len(pts) > 3 else (np.polyfit(w, tq, 1), np.zeros((2, 2)))
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return FrictionLine(float(coef[0]), float(s * coef[1]), float(se[0]), float(se[1]), len(pts))
+
+
+def run_friction_id(
+    driver: MotorDriver,
+    axis: str,
+    gain_nm_per_v: float | None = None,
+    inertia_kg_m2: float | None = None,
+    voltages_per_direction: int = 10,
+    max_speed_rad_s: float = 3.0,
+    pulse_s: float = SEED_PULSE_S,
+    travel_rad: float | None = None,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> FrictionResult:
+    """Run the friction-ID experiment on ``axis`` of ``driver``.
+
+    Parameters
+    ----------
+    driver : any :class:`tracker.drivers.motor.MotorDriver` (the simulated rig or hardware).
+    axis : "pan" or "tilt"; its preset gives K, J and the travel unless given.
+    gain_nm_per_v, inertia_kg_m2 : K (N·m/V) and J (kg·m²) of the axis.
+    voltages_per_direction : constant-voltage runs per direction.
+    max_speed_rad_s : fastest run (the travel must hold a settled measurement at this speed).
+    pulse_s : the seed's break-away pulse length (shortened when a shorter pulse reaches the
+        run's speed).
+    travel_rad : usable travel either side of zero (default: 85 % of the soft limit).
+    progress : called with the fraction done; cancel : polled, True raises JobCancelled.
+
+    Returns
+    -------
+    FrictionResult
+    """
+    preset = get_preset(axis)
+    gain = preset.gain_nm_per_v if gain_nm_per_v is None else float(gain_nm_per_v)
+    inertia = preset.inertia_kg_m2 if inertia_kg_m2 is None else float(inertia_kg_m2)
+    end = TRAVEL_FRACTION * (preset.soft_limit_rad if travel_rad is None else float(travel_rad))
+    ax = _Axis(driver, axis, cancel)
+    driver.enable()
+    total_runs = 2 * (voltages_per_direction + 1)
+    done = 0
+    points: list[FrictionPoint] = []
+    breakaway: dict[float, float] = {}
+    step_rad = 1e-3
+    try:
+        for s in (1.0, -1.0):
+            ax.move_to(-s * end, gain, inertia)
+            v_b = _breakaway_volts(ax, s, 0.4 * preset.coulomb_nm / gain, step_rad)
+            breakaway[s] = gain * v_b
+            done += 1
+            if progress is not None:
+                progress(done / total_runs)
+            mine: list[FrictionPoint] = []
+            speeds = np.linspace(0.1, 1.0, voltages_per_direction) * max_speed_rad_s
+            for i in range(voltages_per_direction):
+                volts = _next_voltage(mine, s, v_b, speeds[i], gain, i)
+                ax.move_to(-s * end, gain, inertia)
+                target = abs(speeds[i])
+                p_len = min(pulse_s, inertia * target / max(gain * SEED_PULSE_V, 1e-9))
+                run_s = min(2 * end / max(target, 0.05) + 0.5, MAX_RUN_S)
+                mine.append(_constant_voltage_run(ax, s, volts, p_len, s * end, gain, inertia, run_s))
+                done += 1
+                if progress is not None:
+                    progress(done / total_runs)
+            points += mine
+    finally:
+        driver.command(axis, 0.0)
+        driver.disable()
+    return FrictionResult(axis, gain, _fit_line(points, 1.0), _fit_line(points, -1.0), breakaway[1.0],
+                          breakaway[-1.0], tuple(points), ax.ticks * ax.dt)
+
+
+def _next_voltage(done: list[FrictionPoint], s: float, v_break: float, speed: float, gain: float, i: int) -> float:
+    """The voltage expected to hold ``speed``.
+
+    With two runs that moved (settled or too fast), from the line through them; before that a
+    bracket search: above the highest voltage that stopped, below the lowest that was too fast.
+    """
+    usable = [p for p in done if p.moved or p.too_fast]
+    if len(usable) >= 2:
+        w = np.array([abs(p.velocity_rad_s) for p in usable])
+        tq = np.array([abs(p.torque_nm) for p in usable])
+        if np.ptp(w) > 0:
+            slope, icpt = np.polyfit(w, tq, 1)
+            if slope > 0:
+                return float(max(icpt + slope * speed, 0.0) / gain)
+    stuck = [abs(p.volts) for p in done if not (p.moved or p.too_fast)]
+    fast = [abs(p.volts) for p in done if p.too_fast]
+    lo = max(stuck) if stuck else None
+    hi = min(fast) if fast else None
+    if hi is not None:
+        return 0.5 * ((lo if lo is not None else 0.5 * v_break) + hi)
+    if lo is not None:
+        return lo * 1.02
+    return v_break * (1.0 + 0.01 * (i + 1))
+
+
+__all__ = ["FrictionLine", "FrictionPoint", "FrictionResult", "run_friction_id"]
