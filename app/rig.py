@@ -68,51 +68,24 @@ def check_angle(axis: str, angle_deg: float, limit_deg: float) -> None:
 def step_response(
     engine: Any, axis: str, gains: Any, amplitude_rad: float, duration_s: float
 ) -> dict[str, Any]:
-    """Predicted response of ``axis`` to a step of ``amplitude_rad`` with ``gains``.
+    """Predicted response of ``axis`` to a step of ``amplitude_rad`` with ``gains``: the engine's
+    full nonlinear loop (shaping, observer, Coulomb, the ±10 V clip) on the axis model.
 
-    Uses ``tracker.control.design.predicted_step_response`` when the engine provides it, else
-    the engine's compiled closed loop (shaping, limits, Coulomb friction) on the axis model.
-    Returns t_s, angle_rad (shape (n,)) and overshoot_percent, rise_time_s (10–90 %).
+    Returns t_s, angle_rad (shape (n,)), rise_time_s, overshoot_percent, settling_time_s,
+    peak_command_v.
     """
-    from tracker.control import design
+    from tracker.control.design import predicted_step_response
 
-    model = axis_model(engine, axis)
-    fn = getattr(design, "predicted_step_response", None)
-    if fn is not None:
-        res = fn(model, gains, amplitude_rad, duration_s)
-        t = np.asarray(getattr(res, "t_s", None) if not isinstance(res, tuple) else res[0], dtype=float)
-        y = getattr(res, "theta_rad", None) if not isinstance(res, tuple) else res[1]
-        if y is None:
-            y = getattr(res, "load_theta_rad", None)
-        y = np.asarray(y, dtype=float)
-    else:
-        from tracker.control.closed_loop import simulate_closed_loop
-        from tracker.control.limits import SoftLimits
-
-        dt_s = 1e-3
-        n = int(round(duration_s / dt_s))
-        shaping = getattr(getattr(engine, "config", None), "shaping", {}).get(axis)
-        res = simulate_closed_loop(
-            model,
-            model,
-            gains,
-            np.full(n, amplitude_rad),
-            dt_s,
-            limits=SoftLimits(-math.pi, math.pi),
-            shaping=shaping,
-        )
-        t, y = res.t_s, res.load_theta_rad
-    return {"t_s": t, "angle_rad": y, **_step_figures(t, y, amplitude_rad)}
-
-
-def _step_figures(t: np.ndarray, y: np.ndarray, amplitude_rad: float) -> dict[str, float | None]:
-    if y.size == 0 or not np.all(np.isfinite(y)):
-        return {"overshoot_percent": None, "rise_time_s": None}
-    overshoot = max(0.0, (float(np.max(y)) - amplitude_rad) / amplitude_rad * 100.0)
-    lo = np.flatnonzero(y >= 0.1 * amplitude_rad)
-    hi = np.flatnonzero(y >= 0.9 * amplitude_rad)
-    rise = float(t[hi[0]] - t[lo[0]]) if lo.size and hi.size else None
-    return {"overshoot_percent": overshoot, "rise_time_s": rise}
+    shaping = (getattr(getattr(engine, "config", None), "shaping", None) or {}).get(axis)
+    res = predicted_step_response(axis_model(engine, axis), gains, amplitude_rad, duration_s, shaping=shaping)
+    return {
+        "t_s": np.asarray(res.t_s, dtype=float),
+        "angle_rad": np.asarray(res.theta_rad, dtype=float),
+        "rise_time_s": res.rise_time_s,
+        "overshoot_percent": res.overshoot_percent,
+        "settling_time_s": res.settling_time_s,
+        "peak_command_v": res.peak_command_v,
+    }
 
 
 def random_practice_model(axis: str, seed: int) -> Any:

@@ -2,7 +2,7 @@
 and the model versions of each measurement with their fits (the same semantics as
 ``tracker model ...``). Heavy work runs in a worker thread, never on the event loop.
 
-Every measurement starts with version 1, the seed's model of its axis. ``fit`` refits the
+Every measurement starts with version 1, the base model of its axis fitted to it. ``fit`` refits the
 latest version's parameters into a new version; ``add-effect`` adds an effect and refits all
 parameters (K stays fixed) into a new version. Each version keeps its compare figures, so the
 history shows the error falling as effects are added.
@@ -22,7 +22,7 @@ from app.errors import check_axis
 from app.modelio import load_measurement, load_version, model_to_json, plain, series_deg
 from app.schemas import AddEffectIn, CompareIn, DiagnoseIn, FitIn
 from app.service import Svc
-from tracker.errors import DataError
+from tracker.errors import ConfigError, DataError
 from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, OPTIONAL_EFFECTS, get_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.compare import compare_model
@@ -109,13 +109,16 @@ async def upload(
 
 
 def store_measurement(db: Database, label: str, axis: str, text: str) -> dict[str, Any]:
-    """Validate, then store a measurement and its first version (the seed model). Atomic per row:
-    invalid text raises DataError before anything is written."""
+    """Validate, then store a measurement and its first version: the base model with its
+    parameters fitted (as ``tracker model fit``). Invalid text raises DataError before anything
+    is written."""
+    from tracker.workbench.fit import fit_model
+
     meas = parse_log(text, label)
-    model = AxisModel.for_axis(axis)
-    summary = _fit_summary(meas, model)
+    res = fit_model(meas, AxisModel.for_axis(axis))
+    summary = _fit_summary(meas, res.model, _fitter_extra(res))
     mid = db.add_measurement(label, axis, text, meas.n, meas.dt_s)
-    vid = db.add_version(mid, None, "seed model", model_to_json(model, axis), summary)
+    vid = db.add_version(mid, None, "base", model_to_json(res.model, axis), summary)
     rec = db.get_measurement(mid)
     assert rec is not None
     rec.pop("csv")
@@ -192,12 +195,17 @@ def _fit_into_version(
 
     rec, meas = load_measurement(db, mid)
     res = fit_model(meas, model, free=free) if free else fit_model(meas, model)
-    extra = {
-        "fitter_fit_percent": getattr(res, "fit_percent", None),
+    return _add_version(db, mid, parent["id"], label, res.model, rec["axis"], meas, _fitter_extra(res))
+
+
+def _fitter_extra(res: Any) -> dict[str, Any]:
+    """What a version keeps from the fitter: parameters with standard errors, convergence."""
+    return {
         "params": dict(res.params),
-        "stderr": dict(getattr(res, "stderr", {}) or {}),
+        "stderr": dict(res.stderr),
+        "converged": bool(res.converged),
+        "free": list(res.free),
     }
-    return _add_version(db, mid, parent["id"], label, res.model, rec["axis"], meas, extra)
 
 
 def run_fit(db: Database, mid: int, body: FitIn) -> dict[str, Any]:
@@ -216,7 +224,9 @@ async def fit(mid: int, body: FitIn, svc: Svc, who: Engineer) -> dict[str, Any]:
 def run_add_effect(db: Database, mid: int, body: AddEffectIn) -> dict[str, Any]:
     get_effect(body.effect)
     v, model = load_version(db, mid, body.version_id)
-    return _fit_into_version(db, mid, v, model.with_effect(body.effect), f"+ {body.effect}")
+    if model.has(body.effect):
+        raise ConfigError(f"version {v['id']} already has {body.effect!r}")
+    return _fit_into_version(db, mid, v, model.with_effect(body.effect), f"+{body.effect}")
 
 
 @router.post(

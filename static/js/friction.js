@@ -51,22 +51,21 @@ async function poll() {
   } catch (e) { clearInterval(timer); $("fric-error").textContent = e.message; }
 }
 
-function pick(obj, ...names) { for (const n of names) if (obj && obj[n] !== undefined) return obj[n]; return undefined; }
-
 function showResult(r) {
-  const pts = pick(r, "points") || [];
-  let v = pick(r, "velocity_rad_s", "omega_rad_s") || pts.map((p) => pick(p, "velocity_rad_s", "omega_rad_s"));
-  let tq = pick(r, "torque_nm") || pts.map((p) => p.torque_nm);
+  const v = r.plot.velocity_rad_s, tq = r.plot.torque_nm;
   const order = v.map((_, i) => i).sort((a, b) => v[a] - v[b]);
-  v = order.map((i) => v[i]); tq = order.map((i) => tq[i]);
-  const params = pick(r, "params") || {};
-  const fc = pick(params, "coulomb.torque") ?? 0, b = pick(params, "viscous.b") ?? 0;
-  const fcn = pick(params, "coulomb_asymmetry.negative") ?? fc, bn = pick(params, "viscous_asymmetry.negative") ?? b;
-  const fitted = v.map((w) => (w > 0 ? fc + b * w : w < 0 ? -fcn + bn * w : null));
-  setData($("plot-friction"), [v, tq, fitted]);
-  const stderr = pick(r, "stderr") || {};
-  const truth = pick(r, "true_params") || {};
-  $("fric-params").innerHTML = `<tr><th>Parameter</th><th>Identified</th><th>± std. error</th>${Object.keys(truth).length ? "<th>Rig (truth)</th>" : ""}</tr>` +
-    Object.entries(params).map(([k, val]) => `<tr><td>${esc(k)}</td><td>${Number(val).toPrecision(4)}</td>
-      <td>${stderr[k] !== undefined ? Number(stderr[k]).toPrecision(2) : "–"}</td>${Object.keys(truth).length ? `<td>${truth[k] !== undefined ? Number(truth[k]).toPrecision(4) : "–"}</td>` : ""}</tr>`).join("");
+  const vs = order.map((i) => v[i]), ts = order.map((i) => tq[i]);
+  const pos = r.positive, neg = r.negative;
+  // Each direction's line, torque = viscous·ω ± Coulomb, drawn over the measured velocities.
+  const fitted = vs.map((w) => (w > 0 ? pos.coulomb_nm + pos.viscous_nm_s_per_rad * w
+    : w < 0 ? -neg.coulomb_nm + neg.viscous_nm_s_per_rad * w : null));
+  setData($("plot-friction"), [vs, ts, fitted]);
+  const row = (name, unit, p, n, pse, nse) => `<tr><td>${name}</td><td>${Number(p).toPrecision(4)} ± ${Number(pse).toPrecision(2)}</td>
+    <td>${Number(n).toPrecision(4)} ± ${Number(nse).toPrecision(2)}</td><td>${unit}</td></tr>`;
+  $("fric-params").innerHTML = `<tr><th></th><th>positive direction</th><th>negative direction</th><th>unit</th></tr>`
+    + row("Coulomb friction", "N·m", pos.coulomb_nm, neg.coulomb_nm, pos.coulomb_se, neg.coulomb_se)
+    + row("Viscous friction", "N·m·s/rad", pos.viscous_nm_s_per_rad, neg.viscous_nm_s_per_rad, pos.viscous_se, neg.viscous_se)
+    + `<tr><td>Break-away</td><td>${fmt(1000 * r.breakaway_nm.positive, 1)} mN·m</td><td>${fmt(1000 * r.breakaway_nm.negative, 1)} mN·m</td><td></td></tr>`
+    + `<tr><td colspan="4" class="muted">${r.shows_stiction ? "Break-away needs clearly more torque than Coulomb friction: stiction." : "No stiction: break-away matches the Coulomb intercept."}
+       ${r.points.length} constant-voltage runs, ${fmt(r.simulated_s, 0)} s on the rig. Model parameters: ${Object.entries(r.params).map(([k, x]) => `${esc(k)} = ${Number(x).toPrecision(4)}`).join(", ")}</td></tr>`;
 }

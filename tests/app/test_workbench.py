@@ -103,7 +103,7 @@ def test_the_loop_finds_the_hidden_offset_and_the_error_falls(rig: Rig, offset_c
     )
     assert add.status_code == 201, add.text
     versions = rig.client.get(f"{API}/measurements/{mid}/versions", headers=rig.h("viewer")).json()
-    assert [v["label"] for v in versions] == ["seed model", f"+ {verdict}"]
+    assert [v["label"] for v in versions] == ["base", f"+{verdict}"]
     assert versions[1]["fit"]["rms_deg"] < 0.5 * versions[0]["fit"]["rms_deg"]
     assert verdict in versions[1]["model"]["effects"]
     assert (
