@@ -11,8 +11,8 @@ returns the direction the camera should point at. The policy imitates a good ope
 * after a switch the camera stays at least ``min_hold_s`` unless the floor was silent for
   longer than ``pause_tolerance_s`` (then the next talker is taken as soon as confirmed);
 * pauses shorter than ``pause_tolerance_s`` keep a talker's claim to the floor;
-* within a talker the shot moves only when the smoothed direction leaves a ``deadband_rad``
-  (then it follows until the talker stands still again);
+* within a talker the shot moves only when the smoothed direction leaves the ``deadband_rad``
+  around the current shot (a walker is followed in dead-band steps the shaping smooths out);
 * after ``wide_after_switches`` switches back and forth between the same two directions within
   ``wide_window_s``, the camera takes a wide shot between them until one talker has held the
   floor for ``wide_release_s``.
@@ -27,6 +27,9 @@ import numpy as np
 from tracker.errors import ConfigError
 
 
+_MAX_CANDIDATES = 3
+
+
 def _wrap(angle_rad: float) -> float:
     """Wrap into (-pi, pi]."""
     return float(-((-angle_rad + np.pi) % (2 * np.pi) - np.pi))
@@ -39,15 +42,16 @@ class TrackerSettings:
     min_confidence: float = 0.05
     confidence_quantile: float = 0.5
     confidence_window_s: float = 10.0
-    measurement_std_rad: float = float(np.deg2rad(3.0))
-    accel_std_rad_s2: float = float(np.deg2rad(40.0))
-    gate_rad: float = float(np.deg2rad(12.0))
+    measurement_std_rad: float = float(np.deg2rad(4.0))
+    fine_std_rad: float = float(np.deg2rad(2.0))
+    accel_std_rad_s2: float = float(np.deg2rad(20.0))
+    max_rate_rad_s: float = float(np.deg2rad(30.0))
+    gate_rad: float = float(np.deg2rad(10.0))
     reaction_time_s: float = 0.3
     candidate_share: float = 0.6
     min_hold_s: float = 2.0
     pause_tolerance_s: float = 1.5
     deadband_rad: float = float(np.deg2rad(3.0))
-    still_rate_rad_s: float = float(np.deg2rad(3.0))
     wide_after_switches: int = 4
     wide_window_s: float = 20.0
     wide_release_s: float = 6.0
@@ -55,7 +59,8 @@ class TrackerSettings:
 
     def __post_init__(self) -> None:
         for name in ("reaction_time_s", "min_hold_s", "pause_tolerance_s", "wide_window_s",
-                     "wide_release_s", "gate_rad", "measurement_std_rad", "accel_std_rad_s2"):
+                     "wide_release_s", "gate_rad", "measurement_std_rad", "fine_std_rad",
+                     "accel_std_rad_s2"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
                 raise ConfigError(f"tracker setting {name}={value} must be a finite value >= 0")
@@ -108,28 +113,35 @@ class _Kalman:
     def innovation(self, z: float) -> float:
         return _wrap(z - self.x[0])
 
-    def update(self, z: float, r: float) -> None:
-        y = self.innovation(z)
-        s = self.p[0, 0] + r
-        k = self.p[:, 0] / s
+    def update(self, z: float, r: float, lag_s: float = 0.0) -> None:
+        """Measurement of the angle ``lag_s`` ago: ``z = x - lag_s * rate + noise``."""
+        h = np.array([1.0, -lag_s])
+        y = _wrap(z - float(h @ self.x))
+        s = float(h @ self.p @ h) + r
+        k = self.p @ h / s
         self.x = self.x + k * y
         self.x[0] = _wrap(self.x[0])
-        self.p = self.p - np.outer(k, self.p[0, :])
+        self.p = self.p - np.outer(k, h @ self.p)
+
+    def limit_rate(self, max_rate: float) -> None:
+        """People walk; a talker's bearing rate beyond ``max_rate`` is filter noise."""
+        self.x[1] = float(np.clip(self.x[1], -max_rate, max_rate))
 
 
 @dataclass(slots=True)
 class _Candidate:
-    """Evidence for a new direction (unit-vector sum for a circular mean)."""
+    """Evidence for a new direction; its position follows its latest hits (a walker moves)."""
 
     first_t_s: float
     last_t_s: float
-    sum_vec: complex
+    azimuth_rad: float
+    first_frame: int
     hits: int = 1
-    others: int = 0
 
-    @property
-    def azimuth_rad(self) -> float:
-        return float(np.angle(self.sum_vec))
+    def add(self, t_s: float, z: float) -> None:
+        self.azimuth_rad = _wrap(self.azimuth_rad + 0.5 * _wrap(z - self.azimuth_rad))
+        self.last_t_s = t_s
+        self.hits += 1
 
 
 @dataclass(slots=True)
@@ -139,25 +151,40 @@ class TalkerTracker:
     settings: TrackerSettings = field(default_factory=TrackerSettings)
     _talker: _Kalman | None = None
     _elevation_rad: float | None = None
-    _candidate: _Candidate | None = None
+    _candidates: list[_Candidate] = field(default_factory=list)
+    _frames: int = 0
     _last_switch_t_s: float = -np.inf
     _last_speech_t_s: float = -np.inf
     _target_rad: float = 0.0
-    _following: bool = False
     _switches: list[tuple[float, float, float]] = field(default_factory=list)
     _wide_rad: float | None = None
     _confidences: list[tuple[float, float]] = field(default_factory=list)
 
     def step(self, t_s: float, azimuth_rad: float, elevation_rad: float | None,
-             confidence: float, speech: bool) -> TrackPoint:
-        """Take one frame (time order) and return the camera target after it."""
+             confidence: float, speech: bool, fine_azimuth_rad: float | None = None,
+             fine_lag_s: float = 0.0) -> TrackPoint:
+        """Take one frame (time order) and return the camera target after it.
+
+        ``azimuth_rad`` comes from a short window (quick to show a new talker);
+        ``fine_azimuth_rad``, when given, from a longer window ending at the same time: it
+        refines the current talker's position but never starts a switch; its centre lies
+        ``fine_lag_s`` before the short window's, which the filter accounts for (a walker's
+        position is not pulled back by the long window's lag).
+        """
         s = self.settings
-        usable = speech and confidence >= s.min_confidence and np.isfinite(azimuth_rad)
-        if usable and s.confidence_quantile > 0.0:
-            usable = self._confident(t_s, confidence)
-        if usable:
+        finite = bool(np.isfinite(azimuth_rad))
+        confident = speech and finite and confidence >= s.min_confidence
+        if confident and s.confidence_quantile > 0.0:
+            confident = self._confident(t_s, confidence)
+        fine = None
+        if speech and fine_azimuth_rad is not None and np.isfinite(fine_azimuth_rad):
+            fine = _wrap(fine_azimuth_rad)
+        if confident or fine is not None:
             floor_was_open = t_s - self._last_speech_t_s > s.pause_tolerance_s
-            self._observe(t_s, _wrap(azimuth_rad), elevation_rad, floor_was_open)
+            if confident:
+                self._frames += 1
+            short = _wrap(azimuth_rad) if confident else None
+            self._observe(t_s, short, elevation_rad, floor_was_open, fine, fine_lag_s)
             self._last_speech_t_s = t_s
         return self._target(t_s)
 
@@ -173,8 +200,12 @@ class TalkerTracker:
 
     # -- talker evidence -------------------------------------------------------------------
 
-    def _observe(self, t_s: float, z: float, elevation_rad: float | None, floor_open: bool
-                 ) -> None:
+    def _observe(self, t_s: float, z: float | None, elevation_rad: float | None,
+                 floor_open: bool, fine: float | None = None, fine_lag_s: float = 0.0) -> None:
+        """Update the talker with ``fine`` and/or ``z``; ``z`` outside the gate is candidate evidence.
+
+        ``z`` is None when the short window was not confident enough to count.
+        """
         s = self.settings
         if self._talker is not None:
             if floor_open:
@@ -185,41 +216,57 @@ class TalkerTracker:
             # neighbour: at most 1.5 times the nominal gate.
             spread = 3.0 * np.sqrt(self._talker.p[0, 0] + s.measurement_std_rad**2)
             gate = float(np.clip(spread, s.gate_rad, 1.5 * s.gate_rad))
-            if abs(self._talker.innovation(z)) <= gate:
+            short_in_gate = z is not None and abs(self._talker.innovation(z)) <= gate
+            if fine is not None and abs(self._talker.innovation(fine)) <= gate:
+                self._talker.update(fine, s.fine_std_rad**2, fine_lag_s)
+                self._talker.limit_rate(s.max_rate_rad_s)
+            elif short_in_gate:
+                assert z is not None
                 self._talker.update(z, s.measurement_std_rad**2)
+                self._talker.limit_rate(s.max_rate_rad_s)
+            else:
+                # No evidence for this talker: the track stays where it was (no coasting).
+                self._talker.x, self._talker.p, self._talker.t_s = before
+            if short_in_gate:
                 self._update_elevation(elevation_rad)
-                if self._candidate is not None:
-                    self._candidate.others += 1
-                self._expire_candidate(t_s)
+            fine_elsewhere = fine is not None and abs(self._talker.innovation(fine)) > gate
+            if short_in_gate or (z is None and not fine_elsewhere):
+                self._expire_candidates(t_s)
                 return
-            # Not this talker: the track stays where its own evidence put it (no coasting).
-            self._talker.x, self._talker.p, self._talker.t_s = before
-        self._add_candidate_evidence(t_s, z)
-        c = self._candidate
-        assert c is not None
-        confirmed = (t_s - c.first_t_s >= s.reaction_time_s
-                     and c.hits >= s.candidate_share * (c.hits + c.others))
+        if z is None:
+            # A long window pointing away from the talker (or at the first talker) is
+            # evidence for a candidate too, when the short one was not confident.
+            if fine is None:
+                return
+            z = fine
+        c = self._add_candidate_evidence(t_s, z)
+        persistent = t_s - c.first_t_s >= s.reaction_time_s - 1e-9 and c.hits >= 3
+        if fine is None:
+            confirmed = persistent and c.hits >= s.candidate_share * (
+                self._frames - c.first_frame + 1)
+        else:
+            # With a long window as well, it must agree: a burst of reflections in the short
+            # windows never moves the long one, a new talker does within half its length.
+            confirmed = persistent and abs(_wrap(fine - c.azimuth_rad)) <= s.gate_rad
         may_switch = floor_open or t_s - self._last_switch_t_s >= s.min_hold_s
         if confirmed and (may_switch or self._talker is None):
             self._switch(t_s, c.azimuth_rad, elevation_rad)
 
-    def _add_candidate_evidence(self, t_s: float, z: float) -> None:
-        s = self.settings
-        self._expire_candidate(t_s)
-        c = self._candidate
-        if c is not None and abs(_wrap(z - c.azimuth_rad)) <= s.gate_rad:
-            c.sum_vec += complex(np.cos(z), np.sin(z))
-            c.hits += 1
-            c.last_t_s = t_s
-        elif c is None or c.hits <= 1:
-            self._candidate = _Candidate(t_s, t_s, complex(np.cos(z), np.sin(z)))
-        else:
-            c.others += 1  # a stray estimate: neither the talker nor the candidate
+    def _add_candidate_evidence(self, t_s: float, z: float) -> _Candidate:
+        """Add ``z`` to the nearest candidate within the gate, or start a new one."""
+        self._expire_candidates(t_s)
+        near = [c for c in self._candidates if abs(_wrap(z - c.azimuth_rad)) <= self.settings.gate_rad]
+        if near:
+            best = min(near, key=lambda c: abs(_wrap(z - c.azimuth_rad)))
+            best.add(t_s, z)
+            return best
+        fresh = _Candidate(t_s, t_s, z, self._frames)
+        self._candidates = [*self._candidates[-(_MAX_CANDIDATES - 1):], fresh]
+        return fresh
 
-    def _expire_candidate(self, t_s: float) -> None:
-        c = self._candidate
-        if c is not None and t_s - c.last_t_s > self.settings.pause_tolerance_s:
-            self._candidate = None
+    def _expire_candidates(self, t_s: float) -> None:
+        timeout = min(self.settings.pause_tolerance_s, max(0.6, 2 * self.settings.reaction_time_s))
+        self._candidates = [c for c in self._candidates if t_s - c.last_t_s <= timeout]
 
     def _switch(self, t_s: float, azimuth_rad: float, elevation_rad: float | None) -> None:
         s = self.settings
@@ -227,10 +274,9 @@ class TalkerTracker:
         p0 = np.diag([s.measurement_std_rad**2, np.deg2rad(10.0) ** 2])
         self._talker = _Kalman(np.array([azimuth_rad, 0.0]), p0, t_s)
         self._elevation_rad = elevation_rad
-        self._candidate = None
+        self._candidates = []
         self._last_switch_t_s = t_s
         self._target_rad = azimuth_rad
-        self._following = False
         if previous is not None:
             self._switches.append((t_s, previous, azimuth_rad))
             self._update_wide(t_s)
@@ -274,12 +320,6 @@ class TalkerTracker:
             self._wide_rad = None
             self._switches.clear()
             self._target_rad = talker
-        offset = abs(_wrap(talker - self._target_rad))
-        rate = abs(float(self._talker.x[1]))
-        if offset > s.deadband_rad:
-            self._following = True
-        elif rate < s.still_rate_rad_s:
-            self._following = False
-        if self._following:
+        if abs(_wrap(talker - self._target_rad)) > s.deadband_rad:
             self._target_rad = talker
         return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)

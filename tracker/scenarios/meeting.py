@@ -32,7 +32,7 @@ from tracker.errors import ConfigError
 
 FloatArray = NDArray[np.float64]
 
-_ARRAY_FILE = Path(__file__).resolve().parents[2] / "examples" / "arrays" / "square4_65mm.json"
+_ARRAYS_DIR = Path(__file__).resolve().parents[2] / "examples" / "arrays"
 _DT_S = 1e-3
 _ON_TARGET_RAD = np.deg2rad(5.0)
 # Seated talkers: (azimuth from the camera, horizontal distance) and the walker's two ends.
@@ -45,8 +45,9 @@ class MeetingSettings:
     """The room and the pipeline of the meeting run."""
 
     room: room.RoomSettings = field(default_factory=room.RoomSettings)
+    array_file: str = "square4_65mm.json"
     method: str = "srp_phat"
-    windows: WindowSettings = field(default_factory=lambda: WindowSettings(0.3, 0.1))
+    windows: WindowSettings = field(default_factory=lambda: WindowSettings(0.3, 0.1, 1.5))
     tracking: TrackerSettings = field(default_factory=TrackerSettings)
     turn_s: tuple[float, float] = (6.0, 10.0)
     gap_s: tuple[float, float] = (0.3, 1.0)
@@ -181,7 +182,7 @@ def run_meeting(seed: int = 0, duration_s: float = 60.0,
     settings = settings or MeetingSettings()
     if not 10.0 <= duration_s <= 600.0:
         raise ConfigError(f"meeting duration_s={duration_s} outside 10-600 s")
-    array = load_array(_ARRAY_FILE)
+    array = load_array(_ARRAYS_DIR / settings.array_file)
     recording, turns = build_meeting(seed, duration_s, settings, array)
     pipeline = Pipeline(array, recording.fs_hz, settings.method, settings.windows,
                         tracking=settings.tracking,
