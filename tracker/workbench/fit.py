@@ -42,7 +42,7 @@ from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.compare import horizon_samples, score_model
 from tracker.workbench.data import Measurement
-from tracker.workbench.search import search_start
+from tracker.workbench.search import FINE_GRID, grid_on_prediction, search_start
 from tracker.workbench.states import StateEstimate, estimate_states, with_load_observer
 
 FloatArray = NDArray[np.float64]
@@ -50,6 +50,8 @@ FitMethod = Literal["k_step", "inverse_dynamics"]
 
 MAX_EVALUATIONS = 400
 POINTS_PER_WINDOW = 10
+DIFF_STEP = 1e-3
+COARSE_DIFF_STEP = 2e-2
 # Residuals are grouped in clusters of at least this many seconds for the standard errors.
 MIN_CLUSTER_S = 0.25
 MIN_CLUSTERS = 12
@@ -337,10 +339,22 @@ def fit_model(
         return ((y_win - pred) / noise).ravel()
 
     x0 = coords.encode(model0)
+    # Contact events make the backlash cost step-like at small scales: difference it coarsely.
+    steps = np.array([COARSE_DIFF_STEP if n == "backlash.width" else DIFF_STEP for n in coords.names])
     sol = least_squares(
         residuals, x0, bounds=(coords.lower, coords.upper), method="trf", x_scale=1.0,
-        diff_step=1e-3, xtol=1e-8, ftol=1e-8, max_nfev=MAX_EVALUATIONS,
+        diff_step=steps, xtol=1e-8, ftol=1e-8, max_nfev=MAX_EVALUATIONS,
     )
+    if "backlash.width" in coords.names:
+        # The width's cost is step-like; the first pass moved the other parameters. Search the
+        # width again around its value with them in place, then polish everything once more.
+        m1 = coords.decode(model0, sol.x)
+        w1 = m1.params["backlash.width"]
+        m2 = grid_on_prediction(meas, est, m1, "backlash.width", [w1 * f for f in FINE_GRID], k, stride=1)
+        sol = least_squares(
+            residuals, coords.encode(m2), bounds=(coords.lower, coords.upper), method="trf", x_scale=1.0,
+            diff_step=steps, xtol=1e-8, ftol=1e-8, max_nfev=MAX_EVALUATIONS,
+        )
     fitted = coords.decode(model0, sol.x)
     resid = sol.fun * noise
     jac = sol.jac * noise

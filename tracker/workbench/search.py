@@ -41,6 +41,7 @@ SATURATION_GRID = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)  # × max |u|
 BACKLASH_GRID_COUNTS = tuple(float(x) for x in np.geomspace(1.0, 300.0, 26))
 # Belt resonance: ratio 1.05 (the k-step cost's basin is only about ±10 % wide).
 COMPLIANCE_GRID_HZ = tuple(float(x) for x in np.geomspace(0.5, 300.0, 132))
+FINE_GRID = tuple(float(x) for x in np.linspace(0.88, 1.12, 13))
 COMPLIANCE_DAMPING_GRID = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8)
 # Low-pass of the rigid-body inverse dynamics for two-mass models (Hz).
 TWO_MASS_ID_CUTOFF_HZ = 2.0
@@ -130,13 +131,17 @@ def _grid_on_id(meas: Measurement, est: StateEstimate, model: AxisModel, name: s
     return best
 
 
-def _grid_on_prediction(meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], k: int) -> AxisModel:
+def grid_on_prediction(
+    meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], k: int,
+    stride: int = GRID_WINDOW_STRIDE,
+) -> AxisModel:
+    """``model`` with ``name`` set to the grid value (or its own) of least k-step window cost."""
     prm = get_param(name)
-    best, best_cost = model, window_cost(meas, est, model, k, GRID_WINDOW_STRIDE)
+    best, best_cost = model, window_cost(meas, est, model, k, stride)
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
         cand = model.with_params({name: v})
-        cost = window_cost(meas, est, cand, k, GRID_WINDOW_STRIDE)
+        cost = window_cost(meas, est, cand, k, stride)
         if cost < best_cost:
             best, best_cost = cand, cost
     return best
@@ -173,12 +178,16 @@ def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: 
             m_id = m_id.with_params({"stiction.static_torque": 1.3 * fc})
     unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
     if "backlash.width" in free:
-        m_id = _grid_on_prediction(meas, est, m_id, "backlash.width", [c * unit for c in BACKLASH_GRID_COUNTS], k)
+        m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [c * unit for c in BACKLASH_GRID_COUNTS], k)
+        # The cost moves in steps as contacts cross sample boundaries, so a gradient barely
+        # refines the width: finish the search on a fine grid instead.
+        w0 = m_id.params["backlash.width"]
+        m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [w0 * f for f in FINE_GRID], k)
     if "compliance.frequency" in free:
         nyq = 0.5 / meas.dt_s
-        m_id = _grid_on_prediction(meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k)
+        m_id = grid_on_prediction(meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k)
         if "compliance.damping" in free:
-            m_id = _grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
+            m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
     # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
     own = m.with_params({n: m_id.params[n] for n in m_id.params if n.split(".")[0] in ("delay", "saturation", "backlash", "compliance", "ripple", "quantization") or n == "stiction.velocity"})
     if window_cost(meas, est, own, k) < window_cost(meas, est, m_id, k):
@@ -186,4 +195,4 @@ def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: 
     return StartValues(m_id, idf.relative_error_percent if idf else math.nan)
 
 
-__all__ = ["StartValues", "find_ripple_cycles", "ripple_spectrum", "search_start", "window_cost"]
+__all__ = ["FINE_GRID", "StartValues", "grid_on_prediction", "find_ripple_cycles", "ripple_spectrum", "search_start", "window_cost"]

