@@ -146,6 +146,7 @@ def format_fit(meas: Measurement, res: FitResult) -> str:
         se_txt = f"{se:11.3g}" if se is not None else f"{'fixed':>11}"
         start = res.start_params.get(k, v)
         lines.append(f"{k:<28} {v:12.5g} {se_txt} {start:12.5g}  {get_param(k).unit}")
+    lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
 
 

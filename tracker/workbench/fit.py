@@ -55,6 +55,8 @@ COARSE_DIFF_STEP = 2e-2
 # Residuals are grouped in clusters of at least this many seconds for the standard errors.
 MIN_CLUSTER_S = 0.25
 MIN_CLUSTERS = 12
+# Parameter pairs more correlated than this are reported as not separable.
+CORRELATION_WARNING = 0.98
 # Components fitted instead of (amplitude, phase).
 _POLAR = {"gravity": ("gravity.torque", "gravity.phase"), "ripple": ("ripple.amplitude", "ripple.phase")}
 
@@ -85,6 +87,18 @@ class FitResult:
     start_params: dict[str, float] = field(default_factory=dict)
     inverse_dynamics_error_percent: float = math.nan
     elapsed_s: float = 0.0
+    correlated: tuple[tuple[str, str, float], ...] = ()
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """Plain-language notes: parameters the data cannot tell apart, a fit that did not converge."""
+        notes = [
+            f"{a} and {b} are {abs(c):.3f} correlated: this run cannot tell them apart"
+            for a, b, c in self.correlated
+        ]
+        if not self.converged:
+            notes.append("the fit did not converge; the parameters may be far from the best")
+        return tuple(notes)
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready: ``{"fit_percent", "params", "stderr", ...}``."""
@@ -104,6 +118,8 @@ class FitResult:
             "method": self.method,
             "inverse_dynamics_error_percent": self.inverse_dynamics_error_percent,
             "elapsed_s": self.elapsed_s,
+            "correlated": [list(c) for c in self.correlated],
+            "warnings": list(self.warnings),
         }
 
 
@@ -187,6 +203,18 @@ class _Coords:
         if gain is not None:
             return AxisModel.create(gain, dict(model.params), model.effects, vals)
         return model.with_params(vals)
+
+    def correlated(self, cov: FloatArray, threshold: float = CORRELATION_WARNING) -> tuple[tuple[str, str, float], ...]:
+        """Pairs of coordinates whose estimates correlate beyond ``threshold`` (|ρ|)."""
+        sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        rho = cov / np.outer(sd, sd)
+        label = [n.rsplit(".", 1)[0] if n.endswith((".cos", ".sin")) else n for n in self.names]
+        out = []
+        for i in range(len(self.names)):
+            for j in range(i + 1, len(self.names)):
+                if label[i] != label[j] and abs(rho[i, j]) > threshold:
+                    out.append((label[i], label[j], float(rho[i, j])))
+        return tuple(out)
 
     def stderr(self, x: FloatArray, cov: FloatArray) -> dict[str, float]:
         """Standard errors in physical units (delta method for amplitude and phase)."""
@@ -363,7 +391,7 @@ def fit_model(
     stderr = coords.stderr(sol.x, cov)
     return _finish(
         meas, fitted, est, k, free_t, stderr, 0.5 * float(resid @ resid), n_eval + 0, bool(sol.success),
-        method, model0, start.id_error_percent, t0,
+        method, model0, start.id_error_percent, t0, coords.correlated(cov),
     )
 
 
@@ -381,6 +409,7 @@ def _finish(
     start_model: AxisModel,
     id_error: float,
     t0: float,
+    correlated: tuple[tuple[str, str, float], ...] = (),
 ) -> FitResult:
     score = score_model(meas, model, est, k)
     return FitResult(
@@ -399,6 +428,7 @@ def _finish(
         start_params=dict(start_model.params),
         inverse_dynamics_error_percent=id_error,
         elapsed_s=time.perf_counter() - t0,
+        correlated=correlated,
     )
 
 

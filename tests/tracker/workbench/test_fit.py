@@ -120,3 +120,15 @@ def test_inverse_dynamics_method_agrees_with_k_step_on_clean_data() -> None:
     for name in ("inertia.J", "coulomb.torque", "offset.torque"):
         _assert_close(name, idm.params[name], true.params[name])
     assert np.isfinite(idm.inverse_dynamics_error_percent)
+
+
+def test_inseparable_parameters_are_flagged_not_hidden() -> None:
+    """Offset plus direction-dependent Coulomb: three levels for two directions of motion."""
+    true = AxisModel.for_axis("pan", ["quantization", "offset"], {"offset.torque": 0.01})
+    meas = closed_loop_log(true, duration_s=15.0, seed=3)
+    clean = fit_model(meas, AxisModel.for_axis("pan", ["offset"]))
+    assert clean.warnings == ()
+    both = fit_model(meas, AxisModel.for_axis("pan", ["offset", "coulomb_asymmetry"]))
+    pairs = {frozenset(p[:2]) for p in both.correlated}
+    assert frozenset({"offset.torque", "coulomb_asymmetry.negative"}) in pairs
+    assert any("cannot tell them apart" in w for w in both.warnings)
