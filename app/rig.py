@@ -17,7 +17,6 @@ from tracker.errors import ConfigError
 
 log = logging.getLogger("app.rig")
 
-EXPERIMENTS = ("mixed", "steps", "sine_sweep", "slow_ramps")
 AXES = ("pan", "tilt")
 
 
@@ -95,15 +94,6 @@ def random_practice_model(axis: str, seed: int) -> Any:
     names = sorted(HIDDEN_RANGES)
     effect = names[int(np.random.default_rng(seed).integers(len(names)))]
     return random_hidden_model(axis, [effect], seed)
-
-
-def run_experiment(truth: Any, kind: str, duration_s: float, seed: int) -> Any:
-    """Record one experiment on a twin of ``truth`` (a workbench Measurement)."""
-    from tracker.workbench.experiments import generate_measurement
-
-    if kind not in EXPERIMENTS:
-        raise ConfigError(f"unknown experiment {kind!r}; experiments: {', '.join(EXPERIMENTS)}")
-    return generate_measurement(truth, duration_s=duration_s, seed=seed)
 
 
 def run_friction_id(driver: Any, axis: str, progress: Any, cancel: Any) -> dict[str, Any]:

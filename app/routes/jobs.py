@@ -17,7 +17,7 @@ from app.auth import Engineer, Viewer
 from app.errors import NotFound
 from app.jobs import CancelToken, Progress
 from app.modelio import plain
-from app.routes.practice import practice_model
+from app.routes.practice import practice_model, practice_state
 from app.schemas import FrictionJobIn
 from app.service import Svc
 
@@ -30,9 +30,10 @@ async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dic
     if body.source == "practice" and hidden is None:
         raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
     settings = svc.settings
+    hidden_axis = (practice_state(svc.db) or {}).get("axis", body.axis)
 
     def work(progress: Progress, cancel: CancelToken) -> dict[str, Any]:
-        driver = rig.build_driver(settings, hidden=hidden, axis=body.axis)
+        driver = rig.build_driver(settings, hidden=hidden, axis=hidden_axis)
         return plain(rig.run_friction_id(driver, body.axis, progress, cancel))
 
     job_id = svc.jobs.start("friction-id", body.model_dump(), work)

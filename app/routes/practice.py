@@ -17,6 +17,7 @@ from app import rig
 from app.auth import Engineer, Viewer
 from app.db import Database
 from app.errors import NotFound
+from app.experiments import EXPERIMENTS, record_experiment
 from app.modelio import model_from_json, model_to_json, plain
 from app.routes.workbench import store_measurement
 from app.schemas import ExperimentIn, PracticeNewIn
@@ -47,7 +48,7 @@ def public_view(st: dict[str, Any] | None) -> dict[str, Any]:
         "axis": st["axis"],
         "revealed": st["revealed"],
         "measurements": st["measurements"],
-        "experiments": list(rig.EXPERIMENTS),
+        "experiments": list(EXPERIMENTS),
     }
     if st["revealed"]:
         out["truth"] = {"effects": st["truth"]["effects"], "params": st["truth"]["params"]}
@@ -83,7 +84,9 @@ async def run_experiment(body: ExperimentIn, svc: Svc, who: Engineer) -> dict[st
         raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
     truth = model_from_json(st["truth"])
     run_no = len(st["measurements"]) + 1
-    meas = await asyncio.to_thread(rig.run_experiment, truth, body.kind, body.duration_s, st["seed"] + run_no)
+    meas = await asyncio.to_thread(
+        record_experiment, truth, st["axis"], body.kind, body.duration_s, st["seed"] + run_no
+    )
     label = f"practice {st['axis']} #{run_no}: {body.kind} {body.duration_s:g} s"
     rec = await asyncio.to_thread(store_measurement, svc.db, label, st["axis"], format_log(meas))
     st["measurements"].append(rec["id"])

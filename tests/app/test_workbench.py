@@ -134,6 +134,11 @@ def test_practice_rig_keeps_its_secret_until_revealed(rig: Rig) -> None:
     exp = rig.client.post("/api/v1/practice/experiments", headers=h, json={"kind": "mixed", "duration_s": 6})
     assert exp.status_code == 201, exp.text
     assert exp.json()["id"] in rig.client.get("/api/v1/practice", headers=h).json()["measurements"]
+    ramps = rig.client.post(
+        "/api/v1/practice/experiments", headers=h, json={"kind": "slow_ramps", "duration_s": 6}
+    )
+    assert ramps.status_code == 201, ramps.text
+    assert ramps.json()["n"] == 6000 and "slow_ramps" in ramps.json()["name"]
     assert (
         rig.client.post("/api/v1/practice/experiments", headers=h, json={"kind": "dance"}).status_code == 422
     )
@@ -141,3 +146,15 @@ def test_practice_rig_keeps_its_secret_until_revealed(rig: Rig) -> None:
     assert rev["revealed"] and len(rev["truth"]["effects"]) == 1
     hidden = rev["truth"]["effects"][0]
     assert any(row["param"].startswith(hidden + ".") for row in rev["params"])
+
+
+@pytest.mark.parametrize("kind", ["steps", "sine_sweep", "slow_ramps"])
+def test_experiment_scripts_stay_inside_the_travel(kind: str) -> None:
+    import numpy as np
+
+    from app.experiments import target_script
+
+    ref = target_script(kind, 20.0, 1.5, seed=2)
+    assert ref.shape == (20000,)
+    assert np.all(np.abs(ref) <= 0.6 * 1.5 + 1e-12)
+    assert np.ptp(ref) > 0.3  # it does excite the axis
