@@ -31,7 +31,9 @@ class Settings(BaseSettings):
     data_dir: Path = Field(Path("data"), description="SQLite database and the first admin key")
     realtime: bool = Field(True, description="run the engine at wall-clock pace")
 
-    rig_config: Path | None = Field(None, description="TOML/JSON of hidden effects for the simulated rig")
+    rig_config: Path | None = Field(
+        None, description="JSON of hidden effects for the simulated rig (tracker/drivers/sim.py)"
+    )
     audio_enabled: bool = Field(True, description="use the simulated room as the tracking target source")
     array_file: Path | None = Field(
         None, description="microphone array JSON; default: the shipped 4-mic square"
