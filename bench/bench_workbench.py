@@ -87,6 +87,20 @@ def recovery() -> None:
         print(f"{effect:<18} {el:6.2f} {res.fit_percent:8.3f} {res.fit_percent_increment:10.2f}  " + ", ".join(errs))
 
 
+def stderr_calibration(runs: int = 12) -> None:
+    """Are the standard errors honest? RMS of (estimate − truth)/stderr over independent runs ≈ 1."""
+    true = AxisModel.for_axis("pan", ("quantization", "offset"), {"offset.torque": 0.01})
+    names = ("inertia.J", "viscous.b", "coulomb.torque", "offset.torque")
+    z: dict[str, list[float]] = {n: [] for n in names}
+    for seed in range(runs):
+        meas = closed_loop_log(true, duration_s=30.0, seed=100 + seed, disturbance_nm=0.002)
+        res = fit_model(meas, start_model(("offset",)))
+        for n in names:
+            z[n].append((res.params[n] - true.params[n]) / res.stderr[n])
+    print(f"\n== standard errors: {runs} runs, 2 mN·m coloured disturbance; RMS z should be ≈ 1 ==")
+    print("  " + ", ".join(f"{n} {math.sqrt(statistics.fmean(v * v for v in z[n])):.2f}" for n in names))
+
+
 def emps() -> None:
     path = DEFAULT_DATA_DIR / "DATA_EMPS.mat"
     if not path.exists():
@@ -119,10 +133,23 @@ def emps() -> None:
         if not kwargs:
             se = ", ".join(f"{n} ± {res.stderr[n]:.3g}" for n in PUBLISHED_PARAMS)
             print(f"{'':<26}stderr: {se}; relative force error of the ID step {res.inverse_dynamics_error_percent:.2f} %")
-    for extra in ("viscous_asymmetry", "coulomb_asymmetry"):
-        res = fit_model(meas, emps_model(("offset", extra), gain))
+    print("the loop (every version refitted, k-step 30 ms):")
+    fitted = {}
+    for effects in ((), ("offset",), ("offset", "viscous_asymmetry"), ("viscous_asymmetry",), ("offset", "coulomb_asymmetry")):
+        res = fit_model(meas, emps_model(effects, gain))
+        fitted[effects] = res.model
         vals = ", ".join(f"{k} {res.params[k]:.4g}" for k in res.free)
-        print(f"+ {extra:<24}fit {res.fit_percent:.3f} % / inc {res.fit_percent_increment:.2f} %: {vals}")
+        label = "base" + "".join(f" + {e}" for e in effects)
+        print(f"  {label:<34} fit {res.fit_percent:.3f} % / inc {res.fit_percent_increment:.2f} %: {vals}")
+        for w in res.warnings[:1]:
+            print(f"  {'':<34} warning: {w}")
+    pulses = DEFAULT_DATA_DIR / "DATA_EMPS_PULSES.mat"
+    if pulses.exists():
+        val, _ = load_emps(pulses)
+        print("validation on DATA_EMPS_PULSES (models fitted on DATA_EMPS; force pulses unmodelled):")
+        for label, model in (("published", pub), *((" + ".join(("base", *e)), m) for e, m in fitted.items())):
+            c = compare_model(val, model)
+            print(f"  {label:<34} fit {c.fit_percent:.3f} % / inc {c.fit_percent_increment:.2f} %")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -133,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     speed(closed_loop_log(base, duration_s=30.0, seed=1, disturbance_nm=0.001))
     if not args.quick:
         recovery()
+        stderr_calibration()
     emps()
     return 0
 
