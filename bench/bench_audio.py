@@ -1,8 +1,9 @@
 """Benchmark: our localizers vs pyroomacoustics' SRP and NormMUSIC on the same simulated rooms.
 
 Prints, per condition and method, the median and 90th-percentile azimuth error on 1 s windows
-(windows where the talker speaks at least half the time) and the milliseconds of compute per
-second of audio; then the tracking figure: the share of speech frames whose tracked direction
+(windows where the talker speaks at least half the time) and the milliseconds of CPU per
+second of audio (inside the sweep, so on a shared machine; a best-of-5 speed table follows); then
+the tracking figure: the share of speech frames whose tracked direction
 is more than 20° off, for a talker who stands, then walks.
 
     .venv/bin/python bench/bench_audio.py            # target condition + a reduced sweep (~3 min)
@@ -109,13 +110,38 @@ def run_condition(cond: Condition, array: MicArray, n_trials: int, seed: int,
             frame = recording.audio[:, k * FS_HZ : (k + 1) * FS_HZ]
             for name, method in methods.items():
                 errors, seconds, audio_s = results[name]
-                start = time.perf_counter()
+                start = time.process_time()
                 out = method.locate(frame)
-                seconds += time.perf_counter() - start
+                seconds += time.process_time() - start
                 azimuth = out if isinstance(out, float) else out.azimuth_rad
                 errors.append(angle_error_deg(azimuth, truth))
                 results[name] = (errors, seconds, audio_s + 1.0)
     return results
+
+
+def speed_table(array: MicArray, pra_band: tuple[float, float]) -> None:
+    """Best-of-5 CPU time per second of audio on one 1 s window.
+
+    CPU time of this process (``time.process_time``), so other jobs on a shared machine do
+    not inflate it; BLAS threads are not involved in these methods.
+    """
+    settings = room.RoomSettings(rt60_s=0.4, snr_db=10.0, fs_hz=FS_HZ)
+    placement = room.wall_placement(settings)
+    speech = synthetic_speech(1.0, FS_HZ, seed=5)
+    position = room.position_from_direction(placement, np.deg2rad(20.0), 2.0)
+    frame = room.simulate(settings, array, placement,
+                          [room.static_talker(speech.samples, speech.active, position)]).audio
+    methods: dict[str, object] = {name: make_localizer(name, array, FS_HZ) for name in OURS}
+    methods.update({f"pra_{name}": PraMethod(name, array, False, pra_band) for name in PRA})
+    print("speed (CPU time), 4 mics at 16 kHz, full azimuth circle, best of 5 runs of 5 calls on 1 s:")
+    for name, method in methods.items():
+        best = np.inf
+        for _ in range(5):
+            start = time.process_time()
+            for _ in range(5):
+                method.locate(frame)
+            best = min(best, (time.process_time() - start) / 5)
+        print(f"  {name:14s} {1000 * best:7.2f} ms per second of audio = {1.0 / best:7.0f}x real time")
 
 
 def tracking_error_share(array: MicArray, n_runs: int, seed: int) -> tuple[float, float, int]:
@@ -189,6 +215,7 @@ def main() -> None:
             print(f"{cond.label:34s} {name:14s} {errors_arr.size:7d} {np.median(errors_arr):8.2f} "
                   f"{np.percentile(errors_arr, 90):7.2f} {1000 * seconds / audio_s:7.2f}")
         print()
+    speed_table(array, tuple(args.pra_band))
     share, raw_share, n_frames = tracking_error_share(array, args.tracking_runs, args.seed)
     print(f"tracking (RT60 0.4 s, SNR 10 dB, wall; talker stands then walks; srp_phat 0.3 s "
           f"windows + 1.5 s refinement): {share:.2f} % of {n_frames} speech frames > 20° off "
