@@ -55,10 +55,17 @@ def start_model(effects: tuple[str, ...]) -> AxisModel:
 def speed(meas: Measurement) -> None:
     base = start_model(("offset",))
     print("== speed: 30 s at 1 kHz, pan + offset, closed loop ==")
-    print(f"fit (k-step, default horizon)       {timed(lambda: fit_model(meas, base)):6.3f} s   (target <= 1 s)")
-    print(f"fit (inverse dynamics only)         {timed(lambda: fit_model(meas, base, method='inverse_dynamics')):6.3f} s")
+    print(
+        f"fit (k-step, default horizon)       {timed(lambda: fit_model(meas, base)):6.3f} s   (target <= 1 s)"
+    )
+    print(
+        f"fit (inverse dynamics only)         "
+        f"{timed(lambda: fit_model(meas, base, method='inverse_dynamics')):6.3f} s"
+    )
     print(f"compare (k-step, with breakdown)    {timed(lambda: compare_model(meas, base)):6.3f} s")
-    print(f"compare (free simulation)           {timed(lambda: compare_model(meas, base, mode='free')):6.3f} s")
+    print(
+        f"compare (free simulation)           {timed(lambda: compare_model(meas, base, mode='free')):6.3f} s"
+    )
     diagnose_hook(meas)
 
 
@@ -68,8 +75,13 @@ def diagnose_hook(meas: Measurement) -> None:
 
 
 def recovery() -> None:
-    print("\n== parameter recovery: hidden effect, 30 s closed loop, 0.5 mN·m disturbance, start 25-40 % off ==")
-    print(f"{'effect':<18} {'time s':>6} {'fit %':>8} {'inc. fit %':>10}  worst error of the effect's parameters")
+    print(
+        "\n== parameter recovery: hidden effect, 30 s closed loop, 0.5 mN·m disturbance, start 25-40 % off =="
+    )
+    print(
+        f"{'effect':<18} {'time s':>6} {'fit %':>8} {'inc. fit %':>10}  "
+        "worst error of the effect's parameters"
+    )
     for effect, params in RECOVERY.items():
         effects = () if effect == "base" else (effect,)
         true = AxisModel.for_axis("pan", ("quantization", *effects), params)
@@ -84,7 +96,10 @@ def recovery() -> None:
                 errs.append(f"{n} {math.remainder(res.params[n] - true.params[n], 2 * math.pi):+.3f} rad")
             else:
                 errs.append(f"{n} {100 * (res.params[n] / true.params[n] - 1):+.1f} %")
-        print(f"{effect:<18} {el:6.2f} {res.fit_percent:8.3f} {res.fit_percent_increment:10.2f}  " + ", ".join(errs))
+        print(
+            f"{effect:<18} {el:6.2f} {res.fit_percent:8.3f} {res.fit_percent_increment:10.2f}  "
+            + ", ".join(errs)
+        )
 
 
 def stderr_calibration(runs: int = 12) -> None:
@@ -112,10 +127,14 @@ def emps() -> None:
     start = emps_model(("offset",), gain)
     before = compare_model(meas, start)
     print(
-        f"catalogue defaults (before fit): fit {before.fit_percent:8.3f} %  increment fit {before.fit_percent_increment:8.2f} %"
+        f"catalogue defaults (before fit): fit {before.fit_percent:8.3f} %  "
+        f"increment fit {before.fit_percent_increment:8.2f} %"
     )
     c = compare_model(meas, pub)
-    print(f"published parameters:            fit {c.fit_percent:8.3f} %  increment fit {c.fit_percent_increment:8.2f} %")
+    print(
+        f"published parameters:            fit {c.fit_percent:8.3f} %  "
+        f"increment fit {c.fit_percent_increment:8.2f} %"
+    )
     print(f"{'':<26}" + "".join(f"{n:>22}" for n in PUBLISHED_PARAMS))
     print(f"{'published':<26}" + "".join(f"{v:22.4f}" for v in PUBLISHED_PARAMS.values()))
     for label, kwargs in (
@@ -127,15 +146,25 @@ def emps() -> None:
     ):
         res = fit_model(meas, start, **kwargs)  # type: ignore[arg-type]
         row = "".join(
-            f"{res.params[n]:10.4f} ({100 * (res.params[n] / v - 1):+5.2f}%)" for n, v in PUBLISHED_PARAMS.items()
+            f"{res.params[n]:10.4f} ({100 * (res.params[n] / v - 1):+5.2f}%)"
+            for n, v in PUBLISHED_PARAMS.items()
         )
         print(f"{label:<26}{row}   fit {res.fit_percent:.3f} % / inc {res.fit_percent_increment:.2f} %")
         if not kwargs:
             se = ", ".join(f"{n} ± {res.stderr[n]:.3g}" for n in PUBLISHED_PARAMS)
-            print(f"{'':<26}stderr: {se}; relative force error of the ID step {res.inverse_dynamics_error_percent:.2f} %")
+            print(
+                f"{'':<26}stderr: {se}; relative force error of the ID step "
+                f"{res.inverse_dynamics_error_percent:.2f} %"
+            )
     print("the loop (every version refitted, k-step 30 ms):")
     fitted = {}
-    for effects in ((), ("offset",), ("offset", "viscous_asymmetry"), ("viscous_asymmetry",), ("offset", "coulomb_asymmetry")):
+    for effects in (
+        (),
+        ("offset",),
+        ("offset", "viscous_asymmetry"),
+        ("viscous_asymmetry",),
+        ("offset", "coulomb_asymmetry"),
+    ):
         res = fit_model(meas, emps_model(effects, gain))
         fitted[effects] = res.model
         vals = ", ".join(f"{k} {res.params[k]:.4g}" for k in res.free)

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from tracker.errors import ConfigError, DataError, TrackerError
+from tracker.errors import ConfigError, TrackerError
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
 from tracker.workbench.compare import CompareResult, compare_model
@@ -60,11 +60,19 @@ def model_from_args(args: argparse.Namespace) -> AxisModel:
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("data", metavar="DATA.csv", help="measurement log with columns t (s), u (V), theta (rad)")
-    p.add_argument("--axis", required=True, choices=("pan", "tilt"), help="seed defaults for K and starting values")
+    p.add_argument(
+        "--axis", required=True, choices=("pan", "tilt"), help="seed defaults for K and starting values"
+    )
     p.add_argument("--effects", default="", help="effects added to the base model, comma-separated")
-    p.add_argument("--gain", type=float, default=None, help="amplifier gain K (N·m/V, or N/V for a linear axis)")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="set a parameter, e.g. inertia.J=0.003")
-    p.add_argument("--horizon", type=float, default=None, metavar="S", help="prediction horizon, s (default 0.03)")
+    p.add_argument(
+        "--gain", type=float, default=None, help="amplifier gain K (N·m/V, or N/V for a linear axis)"
+    )
+    p.add_argument(
+        "--set", action="append", metavar="NAME=VALUE", help="set a parameter, e.g. inertia.J=0.003"
+    )
+    p.add_argument(
+        "--horizon", type=float, default=None, metavar="S", help="prediction horizon, s (default 0.03)"
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -110,18 +118,26 @@ def format_compare(meas: Measurement, model: AxisModel, res: CompareResult) -> s
     lines = [
         _header(meas, model),
         f"prediction: {how}",
-        f"fit {res.fit_percent:.3f} %   increment fit {res.fit_percent_increment:.2f} %   RMS {res.rms_deg:.4g} deg",
+        f"fit {res.fit_percent:.3f} %   increment fit {res.fit_percent_increment:.2f} %   "
+        f"RMS {res.rms_deg:.4g} deg",
         "",
         f"{'regime':<12} {'time %':>7} {'error %':>8} {'concentr.':>9} {'RMS deg':>10}",
     ]
     for name, r in res.regimes.items():
         lines.append(
-            f"{name:<12} {100 * r.fraction_of_time:7.1f} {r.share_of_error_percent:8.1f} {r.concentration:9.2f} {r.rms_deg:10.4g}"
+            f"{name:<12} {100 * r.fraction_of_time:7.1f} {r.share_of_error_percent:8.1f} "
+            f"{r.concentration:9.2f} {r.rms_deg:10.4g}"
         )
     lines += ["", "error by position:"]
     for label, r in res.breakdown.position_bins:
-        lines.append(f"  {label:<24} {100 * r.fraction_of_time:6.1f} % of time  {r.share_of_error_percent:6.1f} % of error")
-    lines.append("residual power by frequency: " + ", ".join(f"{b} {p:.0f} %" for b, p in res.breakdown.frequency_bands))
+        lines.append(
+            f"  {label:<24} {100 * r.fraction_of_time:6.1f} % of time  "
+            f"{r.share_of_error_percent:6.1f} % of error"
+        )
+    lines.append(
+        "residual power by frequency: "
+        + ", ".join(f"{b} {p:.0f} %" for b, p in res.breakdown.frequency_bands)
+    )
     ra = res.residuals
     lines.append(
         f"residual whiteness: {100 * ra.autocorr_outside_fraction:.0f} % of lags outside the 99 % bound "
@@ -135,7 +151,8 @@ def format_fit(meas: Measurement, res: FitResult) -> str:
     """The fit as a person reads it."""
     lines = [
         _header(meas, res.model),
-        f"fit {res.fit_percent:.3f} %   increment fit {res.fit_percent_increment:.2f} %   RMS {res.rms_deg:.4g} deg   "
+        f"fit {res.fit_percent:.3f} %   increment fit {res.fit_percent_increment:.2f} %   "
+        f"RMS {res.rms_deg:.4g} deg   "
         f"({res.method}, horizon {res.horizon_s * 1e3:.0f} ms, {res.n_evaluations} evaluations, "
         f"{'converged' if res.converged else 'NOT converged'}, {res.elapsed_s:.2f} s)",
         "",
@@ -172,7 +189,9 @@ def run_fit(args: argparse.Namespace) -> int:
     if free:
         for k in free:
             get_param(k)
-    res = fit_model(meas, model, free=free, horizon_s=args.horizon, fit_gain=args.fit_gain, method=args.method)
+    res = fit_model(
+        meas, model, free=free, horizon_s=args.horizon, fit_gain=args.fit_gain, method=args.method
+    )
     if args.json:
         print(_json(res.to_dict()))
     else:
@@ -215,13 +234,17 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
         if c.confused_with:
             out.append(f"     looks like: {', '.join(c.confused_with)}")
         if c.significant and c.experiment:
-            out += textwrap.wrap("to confirm: " + c.experiment, width, initial_indent="     ",
-                                 subsequent_indent="     ")
+            out += textwrap.wrap(
+                "to confirm: " + c.experiment, width, initial_indent="     ", subsequent_indent="     "
+            )
         return out
 
     def format_diagnosis(meas: Measurement, model: AxisModel, d: Diagnosis) -> str:
-        verdict = (f"VERDICT: the model is missing {d.verdict}" if d.verdict
-                   else "VERDICT: nothing significant is missing")
+        verdict = (
+            f"VERDICT: the model is missing {d.verdict}"
+            if d.verdict
+            else "VERDICT: nothing significant is missing"
+        )
         lines = [_header(meas, model), f"current model: fit {d.fit_percent:.3f} % (k-step)", verdict, ""]
         for i, c in enumerate(d.candidates, start=1):
             lines += card(i, c)
@@ -253,7 +276,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
     c = sub.add_parser("compare", help="set a model against a measurement (fit %%, RMS, error by regime)")
     _add_common(c)
-    c.add_argument("--mode", choices=("k_step", "free"), default="k_step", help="k-step-ahead prediction or free simulation")
+    c.add_argument(
+        "--mode",
+        choices=("k_step", "free"),
+        default="k_step",
+        help="k-step-ahead prediction or free simulation",
+    )
     c.set_defaults(func=run_compare)
 
     f = sub.add_parser("fit", help="refit every free parameter in physical units")
@@ -261,7 +289,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     f.add_argument("--free", default="", help="parameters to fit (default: all free ones), comma-separated")
     f.add_argument("--fit-gain", action="store_true", help="also fit K (then J is held)")
     f.add_argument(
-        "--method", choices=("k_step", "inverse_dynamics"), default="k_step",
+        "--method",
+        choices=("k_step", "inverse_dynamics"),
+        default="k_step",
         help="k-step prediction error (default) or linear inverse-dynamics least squares",
     )
     f.set_defaults(func=run_fit)

@@ -36,10 +36,10 @@ from tracker.errors import ConfigError, DataError
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import STATE_SIZE, advance, pack_params, simulate
 from tracker.workbench.data import Measurement
-from tracker.workbench.torques import residual_torque_nm
 from tracker.workbench.regimes import RegimeBreakdown, RegimeError, break_down
 from tracker.workbench.residuals import ResidualAnalysis, analyse_residuals
 from tracker.workbench.states import StateEstimate, estimate_states, with_load_observer
+from tracker.workbench.torques import residual_torque_nm
 
 FloatArray = NDArray[np.float64]
 CompareMode = Literal["k_step", "free"]
@@ -225,4 +225,14 @@ def compare_model(
     )
 
 
-__all__ = ["DEFAULT_HORIZON_S", "CompareMode", "CompareResult", "Score", "score_model", "compare_model", "fit_percent", "horizon_samples", "predict_k_step"]
+__all__ = [
+    "DEFAULT_HORIZON_S",
+    "CompareMode",
+    "CompareResult",
+    "Score",
+    "score_model",
+    "compare_model",
+    "fit_percent",
+    "horizon_samples",
+    "predict_k_step",
+]

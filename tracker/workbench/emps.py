@@ -71,4 +71,12 @@ def emps_model(effects: tuple[str, ...] = ("offset",), gain_n_per_v: float = GTA
     return AxisModel.create(gain_n_per_v, {}, effects)
 
 
-__all__ = ["DEFAULT_DATA_DIR", "GTAU_N_PER_V", "PUBLISHED_ASYMMETRIC", "PUBLISHED_PARAMS", "convert_emps", "emps_model", "load_emps"]
+__all__ = [
+    "DEFAULT_DATA_DIR",
+    "GTAU_N_PER_V",
+    "PUBLISHED_ASYMMETRIC",
+    "PUBLISHED_PARAMS",
+    "convert_emps",
+    "emps_model",
+    "load_emps",
+]

@@ -23,10 +23,12 @@ from tracker.workbench.data import Measurement
 FloatArray = NDArray[np.float64]
 
 
-def reference_rad(duration_s: float, dt_s: float, amplitude_rad: float, rng: np.random.Generator) -> FloatArray:
+def reference_rad(
+    duration_s: float, dt_s: float, amplitude_rad: float, rng: np.random.Generator
+) -> FloatArray:
     """Steps, slow ramps and a 0.2–4 Hz sine sweep, each a third of the run. Shape (n,)."""
     n = int(round(duration_s / dt_s))
-    t = np.arange(n) * dt_s
+    t = np.arange(n, dtype=np.float64) * dt_s
     ref = np.zeros(n)
     third = n // 3
     # Steps: random levels held 0.6–1.5 s.
@@ -142,7 +144,7 @@ def closed_loop_log(
         dist = np.zeros(n)
     u, y = _closed_loop(P, ref, dither, dist, dt_s, kp, kd, 0.004, initial_state(float(ref[0])))
     assert np.all(np.abs(u) <= AMPLIFIER_LIMIT_V)
-    t = np.arange(n) * dt_s
+    t = np.arange(n, dtype=np.float64) * dt_s
     return Measurement(t, u, y, f"twin:{','.join(model.effects) or 'base'}:seed{seed}")
 
 

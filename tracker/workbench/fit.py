@@ -204,7 +204,9 @@ class _Coords:
             return AxisModel.create(gain, dict(model.params), model.effects, vals)
         return model.with_params(vals)
 
-    def correlated(self, cov: FloatArray, threshold: float = CORRELATION_WARNING) -> tuple[tuple[str, str, float], ...]:
+    def correlated(
+        self, cov: FloatArray, threshold: float = CORRELATION_WARNING
+    ) -> tuple[tuple[str, str, float], ...]:
         """Pairs of coordinates whose estimates correlate beyond ``threshold`` (|ρ|)."""
         sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         rho = cov / np.outer(sd, sd)
@@ -273,10 +275,13 @@ def _cluster_ids(window_resid: FloatArray, dt_window_s: float) -> NDArray[np.int
         corr_len = int(below[0]) if below.size else m
     size = max(corr_len, int(math.ceil(MIN_CLUSTER_S / dt_window_s)), 1)
     size = min(size, max(1, m // MIN_CLUSTERS))
-    return np.arange(m) // size
+    ids: NDArray[np.int64] = np.arange(m, dtype=np.int64) // size
+    return ids
 
 
-def _robust_covariance(jac: FloatArray, resid: FloatArray, clusters: NDArray[np.int64], per_window: int) -> FloatArray:
+def _robust_covariance(
+    jac: FloatArray, resid: FloatArray, clusters: NDArray[np.int64], per_window: int
+) -> FloatArray:
     """Cluster-robust sandwich (JᵀJ)⁻¹ (Σ_c g_c g_cᵀ) (JᵀJ)⁻¹ with g_c = J_cᵀ r_c."""
     p = jac.shape[1]
     jtj = jac.T @ jac
@@ -322,11 +327,13 @@ def fit_model(
     if method not in ("k_step", "inverse_dynamics"):
         raise ConfigError(f"fit method must be 'k_step' or 'inverse_dynamics', got {method!r}")
     free_t = default_free(model, fit_gain) if free is None else tuple(free)
-    for k in free_t:
-        if k not in model.params:
-            raise ConfigError(f"cannot fit {k!r}: the model has no such parameter (it has {', '.join(model.params)})")
+    for name in free_t:
+        if name not in model.params:
+            raise ConfigError(
+                f"cannot fit {name!r}: the model has no such parameter (it has {', '.join(model.params)})"
+            )
     if fit_gain:
-        free_t = tuple(k for k in free_t if k != "inertia.J")
+        free_t = tuple(n for n in free_t if n != "inertia.J")
     dt = meas.dt_s
     k = horizon_samples(horizon_s, dt, meas.n)
     est = estimate_states(meas) if states is None else states
@@ -341,7 +348,9 @@ def fit_model(
     if progress is not None:
         progress(0.1)
     if method == "inverse_dynamics" or not free_t:
-        return _finish(meas, model0, est, k, free_t, {}, 0.0, 0, True, method, start.model, start.id_error_percent, t0)
+        return _finish(
+            meas, model0, est, k, free_t, {}, 0.0, 0, True, method, start.model, start.id_error_percent, t0
+        )
 
     coords = _Coords.build(model0, free_t, fit_gain)
     starts = window_starts(meas.n, k)
@@ -364,14 +373,22 @@ def fit_model(
         m = coords.decode(model0, x)
         e = with_load_observer(est, m, meas) if two_mass else est
         pred = predict_windows(m, u, dt, starts, k + 1, e.initial_states(starts))[:, 1 + cols]
-        return ((y_win - pred) / noise).ravel()
+        r: FloatArray = ((y_win - pred) / noise).ravel()
+        return r
 
     x0 = coords.encode(model0)
     # Contact events make the backlash cost step-like at small scales: difference it coarsely.
     steps = np.array([COARSE_DIFF_STEP if n == "backlash.width" else DIFF_STEP for n in coords.names])
     sol = least_squares(
-        residuals, x0, bounds=(coords.lower, coords.upper), method="trf", x_scale=1.0,
-        diff_step=steps, xtol=1e-8, ftol=1e-8, max_nfev=MAX_EVALUATIONS,
+        residuals,
+        x0,
+        bounds=(coords.lower, coords.upper),
+        method="trf",
+        x_scale=1.0,
+        diff_step=steps,
+        xtol=1e-8,
+        ftol=1e-8,
+        max_nfev=MAX_EVALUATIONS,
     )
     if "backlash.width" in coords.names:
         # The width's cost is step-like; the first pass moved the other parameters. Search the
@@ -380,8 +397,15 @@ def fit_model(
         w1 = m1.params["backlash.width"]
         m2 = grid_on_prediction(meas, est, m1, "backlash.width", [w1 * f for f in FINE_GRID], k, stride=1)
         sol = least_squares(
-            residuals, coords.encode(m2), bounds=(coords.lower, coords.upper), method="trf", x_scale=1.0,
-            diff_step=steps, xtol=1e-8, ftol=1e-8, max_nfev=MAX_EVALUATIONS,
+            residuals,
+            coords.encode(m2),
+            bounds=(coords.lower, coords.upper),
+            method="trf",
+            x_scale=1.0,
+            diff_step=steps,
+            xtol=1e-8,
+            ftol=1e-8,
+            max_nfev=MAX_EVALUATIONS,
         )
     fitted = coords.decode(model0, sol.x)
     resid = sol.fun * noise
@@ -390,8 +414,20 @@ def fit_model(
     cov = _robust_covariance(jac, resid, clusters, cols.size)
     stderr = coords.stderr(sol.x, cov)
     return _finish(
-        meas, fitted, est, k, free_t, stderr, 0.5 * float(resid @ resid), n_eval + 0, bool(sol.success),
-        method, model0, start.id_error_percent, t0, coords.correlated(cov),
+        meas,
+        fitted,
+        est,
+        k,
+        free_t,
+        stderr,
+        0.5 * float(resid @ resid),
+        n_eval + 0,
+        bool(sol.success),
+        method,
+        model0,
+        start.id_error_percent,
+        t0,
+        coords.correlated(cov),
     )
 
 

@@ -46,7 +46,11 @@ class RegimeError:
     @property
     def concentration(self) -> float:
         """Share of error ÷ share of time (1 = evenly spread; 0 when the regime is empty)."""
-        return self.share_of_error_percent / (100.0 * self.fraction_of_time) if self.fraction_of_time > 0 else 0.0
+        return (
+            self.share_of_error_percent / (100.0 * self.fraction_of_time)
+            if self.fraction_of_time > 0
+            else 0.0
+        )
 
     def to_dict(self) -> dict[str, float | int]:
         """JSON-ready."""
@@ -100,7 +104,8 @@ def _window_any(mask: BoolArray, k: int) -> BoolArray:
     if k <= 0:
         return mask.copy()
     f = maximum_filter1d(mask.astype(np.uint8), size=k + 1, origin=k // 2, mode="nearest")
-    return f.astype(bool)
+    out: BoolArray = f.astype(bool)
+    return out
 
 
 def _window_all(mask: BoolArray, k: int) -> BoolArray:
@@ -108,7 +113,8 @@ def _window_all(mask: BoolArray, k: int) -> BoolArray:
     if k <= 0:
         return mask.copy()
     f = minimum_filter1d(mask.astype(np.uint8), size=k + 1, origin=k // 2, mode="nearest")
-    return f.astype(bool)
+    out: BoolArray = f.astype(bool)
+    return out
 
 
 def regime_masks(
@@ -151,10 +157,13 @@ def regime_masks(
 
 def _spread(points: BoolArray, pad: int) -> BoolArray:
     """Mark ±pad samples around each True."""
-    return maximum_filter1d(points.astype(np.uint8), size=2 * pad + 1, mode="constant").astype(bool)
+    out: BoolArray = maximum_filter1d(points.astype(np.uint8), size=2 * pad + 1, mode="constant").astype(bool)
+    return out
 
 
-def _bins(residual: FloatArray, values: FloatArray, edges: FloatArray, unit: str) -> tuple[tuple[str, RegimeError], ...]:
+def _bins(
+    residual: FloatArray, values: FloatArray, edges: FloatArray, unit: str
+) -> tuple[tuple[str, RegimeError], ...]:
     out = []
     for i in range(edges.size - 1):
         lo, hi = edges[i], edges[i + 1]
@@ -199,4 +208,12 @@ def break_down(
     return RegimeBreakdown(regimes, pos, seg, frequency_shares(residual_rad, dt))
 
 
-__all__ = ["REGIME_NAMES", "RegimeBreakdown", "RegimeError", "break_down", "frequency_shares", "regime_error", "regime_masks"]
+__all__ = [
+    "REGIME_NAMES",
+    "RegimeBreakdown",
+    "RegimeError",
+    "break_down",
+    "frequency_shares",
+    "regime_error",
+    "regime_masks",
+]

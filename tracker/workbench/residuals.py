@@ -123,7 +123,7 @@ def analyse_residuals(
     cu = np.fft.irfft(fu * np.conj(fu), nfft)[: kmax + 1] / n
     re_all = ce / ce[0] if ce[0] > 0 else np.zeros_like(ce)
     ru_all = cu / cu[0] if cu[0] > 0 else np.zeros_like(cu)
-    lags = np.arange(m + 1) * dt_s
+    lags = np.arange(m + 1, dtype=np.float64) * dt_s
     re = re_all[: m + 1]
     a_bound = Z_99 / math.sqrt(n)
     a_out = float(np.mean(np.abs(re[1:]) > a_bound)) if m > 0 else 0.0
@@ -135,14 +135,26 @@ def analyse_residuals(
     else:
         xc = np.zeros(2 * m + 1)
         x_bound = Z_99 / math.sqrt(n)
-    x_lags = np.arange(-m, m + 1) * dt_s
+    x_lags = np.arange(-m, m + 1, dtype=np.float64) * dt_s
     k_peak = int(np.argmax(np.abs(xc)))
     x_out = float(np.mean(np.abs(xc) > x_bound))
     nper = int(min(n, max(64, 2 ** int(math.log2(max(n // 8, 64))))))
     f, psd = welch(e0, fs=1.0 / dt_s, nperseg=nper)
     peak_hz = float(f[1 + int(np.argmax(psd[1:]))]) if f.size > 1 else 0.0
     return ResidualAnalysis(
-        lags, re, a_bound, a_out, x_lags, xc, x_bound, x_out, float(x_lags[k_peak]), float(xc[k_peak]), f, psd, peak_hz
+        lags,
+        re,
+        a_bound,
+        a_out,
+        x_lags,
+        xc,
+        x_bound,
+        x_out,
+        float(x_lags[k_peak]),
+        float(xc[k_peak]),
+        f,
+        psd,
+        peak_hz,
     )
 
 

@@ -66,7 +66,9 @@ def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int,
     return float(np.mean((y - pred) ** 2))
 
 
-def ripple_spectrum(theta_rad: FloatArray, torque_nm: FloatArray, n_max: int = 500) -> tuple[NDArray[np.int64], FloatArray]:
+def ripple_spectrum(
+    theta_rad: FloatArray, torque_nm: FloatArray, n_max: int = 500
+) -> tuple[NDArray[np.int64], FloatArray]:
     """Amplitude (N·m) of the torque's sin/cos nθ component for each resolvable whole n.
 
     Returns (cycles, amplitude), shape (m,) each. n must fit two periods in the θ range seen and
@@ -98,7 +100,11 @@ def find_ripple_cycles(meas: Measurement, est: StateEstimate, model: AxisModel) 
     """Whole cycles per revolution of the strongest θ-periodic residual torque (the model's
     value when the data cannot resolve any)."""
     base = model.without_effect("ripple")
-    free = [k for k in base.free_param_names() if k.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")]
+    free = [
+        k
+        for k in base.free_param_names()
+        if k.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
+    ]
     fitted = base.with_params(fit_inverse_dynamics(meas, est, base, free).params)
     mov = moving_mask(est.omega_rad_s)
     tq = residual_torque_nm(meas, est, fitted)[mov]
@@ -119,7 +125,14 @@ def _id_error(meas: Measurement, est: StateEstimate, model: AxisModel, free: Seq
     return fit_inverse_dynamics(meas, est, model, free, cutoff_hz=_cutoff_hz(model)).relative_error_percent
 
 
-def _grid_on_id(meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], free: Sequence[str]) -> AxisModel:
+def _grid_on_id(
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    name: str,
+    grid: Sequence[float],
+    free: Sequence[str],
+) -> AxisModel:
     prm = get_param(name)
     best, best_err = model, math.inf
     for v in grid:
@@ -132,7 +145,12 @@ def _grid_on_id(meas: Measurement, est: StateEstimate, model: AxisModel, name: s
 
 
 def grid_on_prediction(
-    meas: Measurement, est: StateEstimate, model: AxisModel, name: str, grid: Sequence[float], k: int,
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    name: str,
+    grid: Sequence[float],
+    k: int,
     stride: int = GRID_WINDOW_STRIDE,
 ) -> AxisModel:
     """``model`` with ``name`` set to the grid value (or its own) of least k-step window cost."""
@@ -147,14 +165,18 @@ def grid_on_prediction(
     return best
 
 
-def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str], k: int) -> StartValues:
+def search_start(
+    meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str], k: int
+) -> StartValues:
     """Starting values for the fit of ``free`` (full names) at horizon ``k`` samples."""
     m = model
     if m.has("quantization"):
         q = encoder_step_rad(meas.theta_rad)
         if 0.0 < q <= get_param("quantization.step").upper:
             m = m.with_params({"quantization.step": q})
-    linear_free = [n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")]
+    linear_free = [
+        n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
+    ]
     linear_free = [n for n in linear_free if n not in ("stiction.velocity", "gravity.phase", "ripple.phase")]
     if m.has("ripple") and "ripple.amplitude" in free:
         m = m.with_params({"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
@@ -164,7 +186,9 @@ def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: 
         if "delay.seconds" in free:
             m = _grid_on_id(meas, est, m, "delay.seconds", DELAY_GRID_S, linear_free)
         if "saturation.limit" in free and umax > 0:
-            m = _grid_on_id(meas, est, m, "saturation.limit", [f * umax for f in SATURATION_GRID], linear_free)
+            m = _grid_on_id(
+                meas, est, m, "saturation.limit", [f * umax for f in SATURATION_GRID], linear_free
+            )
         if "stiction.velocity" in free:
             m = _grid_on_id(meas, est, m, "stiction.velocity", [f * w95 for f in STRIBECK_GRID], linear_free)
         idf = fit_inverse_dynamics(meas, est, m, linear_free, cutoff_hz=_cutoff_hz(m))
@@ -178,21 +202,40 @@ def search_start(meas: Measurement, est: StateEstimate, model: AxisModel, free: 
             m_id = m_id.with_params({"stiction.static_torque": 1.3 * fc})
     unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
     if "backlash.width" in free:
-        m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [c * unit for c in BACKLASH_GRID_COUNTS], k)
+        m_id = grid_on_prediction(
+            meas, est, m_id, "backlash.width", [c * unit for c in BACKLASH_GRID_COUNTS], k
+        )
         # The cost moves in steps as contacts cross sample boundaries, so a gradient barely
         # refines the width: finish the search on a fine grid instead.
         w0 = m_id.params["backlash.width"]
         m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [w0 * f for f in FINE_GRID], k)
     if "compliance.frequency" in free:
         nyq = 0.5 / meas.dt_s
-        m_id = grid_on_prediction(meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k)
+        m_id = grid_on_prediction(
+            meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k
+        )
         if "compliance.damping" in free:
             m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
     # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
-    own = m.with_params({n: m_id.params[n] for n in m_id.params if n.split(".")[0] in ("delay", "saturation", "backlash", "compliance", "ripple", "quantization") or n == "stiction.velocity"})
+    own = m.with_params(
+        {
+            n: m_id.params[n]
+            for n in m_id.params
+            if n.split(".")[0] in ("delay", "saturation", "backlash", "compliance", "ripple", "quantization")
+            or n == "stiction.velocity"
+        }
+    )
     if window_cost(meas, est, own, k) < window_cost(meas, est, m_id, k):
         m_id = own
     return StartValues(m_id, idf.relative_error_percent if idf else math.nan)
 
 
-__all__ = ["FINE_GRID", "StartValues", "grid_on_prediction", "find_ripple_cycles", "ripple_spectrum", "search_start", "window_cost"]
+__all__ = [
+    "FINE_GRID",
+    "StartValues",
+    "grid_on_prediction",
+    "find_ripple_cycles",
+    "ripple_spectrum",
+    "search_start",
+    "window_cost",
+]

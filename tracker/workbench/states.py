@@ -222,7 +222,9 @@ def smooth_kinematics(
 
 
 @njit(cache=True)
-def _model_observer(P: FloatArray, u: FloatArray, y: FloatArray, dt: float, x0: FloatArray, l_pos: float, l_vel: float) -> FloatArray:
+def _model_observer(
+    P: FloatArray, u: FloatArray, y: FloatArray, dt: float, x0: FloatArray, l_pos: float, l_vel: float
+) -> FloatArray:
     """Luenberger observer on the full model: predict with the simulator, correct the motor
     side toward the encoder. Returns the state at every sample, shape (n, 4)."""
     n = y.shape[0]
@@ -253,10 +255,14 @@ def observe_states(
     p = math.exp(-2.0 * math.pi * bandwidth_hz * dt)
     y = np.ascontiguousarray(meas.theta_rad, dtype=float)
     x0 = np.array([y[0], 0.0, y[0], 0.0])
-    return _model_observer(P, np.ascontiguousarray(meas.u_v, dtype=float), y, dt, x0, 1.0 - p * p, (1.0 - p) ** 2 / dt)
+    return _model_observer(
+        P, np.ascontiguousarray(meas.u_v, dtype=float), y, dt, x0, 1.0 - p * p, (1.0 - p) ** 2 / dt
+    )
 
 
-def estimate_states(meas: Measurement, model: AxisModel | None = None, bandwidth_hz: float | None = None) -> StateEstimate:
+def estimate_states(
+    meas: Measurement, model: AxisModel | None = None, bandwidth_hz: float | None = None
+) -> StateEstimate:
     """Estimate the state at every sample of ``meas``.
 
     Parameters
@@ -289,7 +295,16 @@ def with_load_observer(est: StateEstimate, model: AxisModel, meas: Measurement) 
         xs = observe_states(model, meas)
         # Back from the simulator's half-step velocity convention to the smooth one.
         th_l, om_l = xs[:, 2].copy(), xs[:, 3] + 0.5 * meas.dt_s * est.alpha_rad_s2
-    return StateEstimate(est.theta_rad, est.omega_rad_s, est.alpha_rad_s2, th_l, om_l, est.noise_rad, est.bandwidth_hz, meas.dt_s)
+    return StateEstimate(
+        est.theta_rad,
+        est.omega_rad_s,
+        est.alpha_rad_s2,
+        th_l,
+        om_l,
+        est.noise_rad,
+        est.bandwidth_hz,
+        meas.dt_s,
+    )
 
 
 __all__ = [

@@ -42,7 +42,8 @@ def effective_command_v(model: AxisModel, u_v: FloatArray, dt_s: float) -> Float
         idx = np.arange(u.size) - d / dt_s
         u = np.interp(idx, np.arange(u.size), u)
     lim = min(model.params.get("saturation.limit", AMPLIFIER_LIMIT_V), AMPLIFIER_LIMIT_V)
-    return np.clip(u, -lim, lim)
+    clipped: FloatArray = np.clip(u, -lim, lim)
+    return clipped
 
 
 def model_torque_nm(model: AxisModel, theta_rad: FloatArray, omega_rad_s: FloatArray) -> FloatArray:
@@ -200,7 +201,9 @@ def fit_inverse_dynamics(
     th, om, al = est.theta_rad, est.omega_rad_s, est.alpha_rad_s2
     sel = moving_mask(om) if mask is None else mask
     if int(sel.sum()) < 20:
-        raise DataError(f"{meas.source or '<data>'}: the axis hardly moves; cannot identify friction or inertia")
+        raise DataError(
+            f"{meas.source or '<data>'}: the axis hardly moves; cannot identify friction or inertia"
+        )
     names, cols = _columns(model, th, om, al, free_set)
     lhs = model.gain_nm_per_v * effective_command_v(model, meas.u_v, meas.dt_s)
     rhs = lhs - model_torque_nm(_zero_linear(model, free_set), th, om)

@@ -16,7 +16,7 @@ import re
 import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from types import MappingProxyType
 
@@ -60,7 +60,7 @@ class ModelVersion:
             stderr=MappingProxyType(dict(fit.stderr)),
             data_source=data_source,
             horizon_s=fit.horizon_s,
-            created_utc=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
         )
 
     def to_dict(self) -> dict[str, object]:
@@ -85,7 +85,9 @@ class ModelVersion:
             m = d["model"]
             assert isinstance(m, Mapping)
             model = AxisModel.create(
-                float(m["gain_nm_per_v"]), dict(m["params"]), tuple(m["effects"])  # type: ignore[arg-type]
+                float(m["gain_nm_per_v"]),
+                dict(m["params"]),
+                tuple(m["effects"]),
             )
             return cls(
                 number=int(d["number"]),  # type: ignore[call-overload]
@@ -144,7 +146,9 @@ Progress = Callable[[float], None]
 Cancel = Callable[[], bool]
 
 
-def first_version(meas: Measurement, model: AxisModel, progress: Progress | None = None, cancel: Cancel | None = None) -> VersionHistory:
+def first_version(
+    meas: Measurement, model: AxisModel, progress: Progress | None = None, cancel: Cancel | None = None
+) -> VersionHistory:
     """Fit ``model`` to ``meas`` and start a history with it (version 1)."""
     fit = fit_model(meas, model, progress=progress, cancel=cancel)
     change = "base" if not model.effects else "base+" + "+".join(model.effects)
@@ -217,7 +221,9 @@ class VersionStore:
         items = raw.get("versions") if isinstance(raw, dict) else None
         if not isinstance(items, list):
             raise DataError(f"{path}: expected an object with a 'versions' list")
-        return VersionHistory(tuple(ModelVersion.from_dict(v, f"{path}: version {i + 1}") for i, v in enumerate(items)))
+        return VersionHistory(
+            tuple(ModelVersion.from_dict(v, f"{path}: version {i + 1}") for i, v in enumerate(items))
+        )
 
     def save(self, name: str, history: VersionHistory) -> None:
         """Store ``history`` as ``name`` (replacing the old one atomically)."""

@@ -23,7 +23,9 @@ def test_compare_json_contract(log_path: Path, capsys: pytest.CaptureFixture[str
     assert main(["model", "compare", str(log_path), "--axis", "pan", "--effects", "offset", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert isinstance(d["fit_percent"], float) and isinstance(d["rms_deg"], float)
-    assert {"rms_deg", "share_of_error_percent", "samples", "fraction_of_time"} <= set(d["regimes"]["reversal"])
+    assert {"rms_deg", "share_of_error_percent", "samples", "fraction_of_time"} <= set(
+        d["regimes"]["reversal"]
+    )
 
 
 def test_fit_json_contract_has_every_parameter(log_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -47,10 +49,19 @@ def test_tables_for_people(log_path: Path, capsys: pytest.CaptureFixture[str]) -
     ("content", "needle"),
     [
         ("t,u\n0,1\n", "missing column theta"),
-        ("t,u,theta\n" + "".join(f"{i * 1e-3},0,{'x' if i == 5 else 0}\n" for i in range(300)), "line 7: theta"),
+        (
+            "t,u,theta\n" + "".join(f"{i * 1e-3},0,{'x' if i == 5 else 0}\n" for i in range(300)),
+            "line 7: theta",
+        ),
         ("t,u,theta\n" + "".join(f"{i * 1e-3},0,{'nan' if i == 3 else 0}\n" for i in range(300)), "line 5"),
-        ("t,u,theta\n" + "".join(f"{(i if i != 9 else 8) * 1e-3},0,0\n" for i in range(300)), "time does not increase"),
-        ("t,u,theta\n" + "".join(f"{i * 1e-3 * (2 if i > 100 else 1)},0,0\n" for i in range(300)), "uneven sampling"),
+        (
+            "t,u,theta\n" + "".join(f"{(i if i != 9 else 8) * 1e-3},0,0\n" for i in range(300)),
+            "time does not increase",
+        ),
+        (
+            "t,u,theta\n" + "".join(f"{i * 1e-3 * (2 if i > 100 else 1)},0,0\n" for i in range(300)),
+            "uneven sampling",
+        ),
         ("t,u,theta\n0,0,0\n0.001,0,0\n", "only 2 samples"),
     ],
     ids=["missing-column", "non-numeric", "nan", "time-backwards", "uneven", "too-short"],

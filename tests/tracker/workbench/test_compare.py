@@ -29,7 +29,9 @@ def offset_run() -> Measurement:
     return closed_loop_log(true, duration_s=20.0, seed=3)
 
 
-def test_the_true_model_predicts_to_the_encoder_count_and_a_wrong_one_does_not(offset_run: Measurement) -> None:
+def test_the_true_model_predicts_to_the_encoder_count_and_a_wrong_one_does_not(
+    offset_run: Measurement,
+) -> None:
     right = compare_model(offset_run, AxisModel.for_axis("pan", ["offset"], {"offset.torque": 0.012}))
     wrong = compare_model(offset_run, AxisModel.for_axis("pan"))
     count = 2 * math.pi / (4 * 500 * 6.3 * 2.7)

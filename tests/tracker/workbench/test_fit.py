@@ -78,8 +78,12 @@ def test_base_model_recovered_from_a_start_far_off() -> None:
 
 def test_standard_errors_cover_the_truth_and_shrink_with_more_data() -> None:
     true = AxisModel.for_axis("pan", ["quantization", "offset"], {"offset.torque": 0.01})
-    short = fit_model(closed_loop_log(true, duration_s=15.0, seed=2, disturbance_nm=0.002), _start(("offset",)))
-    long = fit_model(closed_loop_log(true, duration_s=45.0, seed=2, disturbance_nm=0.002), _start(("offset",)))
+    short = fit_model(
+        closed_loop_log(true, duration_s=15.0, seed=2, disturbance_nm=0.002), _start(("offset",))
+    )
+    long = fit_model(
+        closed_loop_log(true, duration_s=45.0, seed=2, disturbance_nm=0.002), _start(("offset",))
+    )
     for name in ("inertia.J", "coulomb.torque", "offset.torque"):
         assert abs(long.params[name] - true.params[name]) < 4.0 * long.stderr[name], name
         assert long.stderr[name] < short.stderr[name], name

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import initial_state, pack_params
 from tracker.plant.simulate import _run as run_states
+from tracker.plant.simulate import initial_state, pack_params
 from tracker.workbench.data import Measurement
 from tracker.workbench.excite import closed_loop_log
 from tracker.workbench.states import encoder_step_rad, estimate_states, measurement_noise_rad
@@ -50,7 +50,8 @@ def test_encoder_step_and_noise_are_read_from_the_data() -> None:
             "backlash",
             {"backlash.width": 0.01},
             marks=pytest.mark.xfail(
-                reason="known limit: while the motor holds, the frictionless load drifts unobserved in the gap",
+                reason="known limit: while the motor holds, the frictionless load drifts unobserved "
+                "in the gap",
                 strict=False,
             ),
         ),

@@ -13,7 +13,9 @@ from tracker.workbench.versions import VersionStore, add_effect, first_version, 
 
 def test_adding_the_missing_effects_makes_the_error_fall_and_is_kept(tmp_path: Path) -> None:
     true = AxisModel.for_axis(
-        "pan", ["quantization", "offset", "gravity"], {"offset.torque": 0.01, "gravity.torque": 0.05, "gravity.phase": 0.3}
+        "pan",
+        ["quantization", "offset", "gravity"],
+        {"offset.torque": 0.01, "gravity.torque": 0.05, "gravity.phase": 0.3},
     )
     meas = closed_loop_log(true, duration_s=15.0, seed=6)
     h = first_version(meas, AxisModel.for_axis("pan"))
