@@ -103,11 +103,9 @@ async def reveal(svc: Svc, who: Engineer) -> dict[str, Any]:
     svc.db.put_value(KV_KEY, st)
     true_params: dict[str, float] = st["truth"]["params"]
     rows = []
-    best = None
-    for mid in st["measurements"]:
-        versions = svc.db.list_versions(mid)
-        if versions:
-            best = versions[-1]
+    # The model the person worked on last: the most recently made version of any practice run.
+    versions = [v for mid in st["measurements"] for v in svc.db.list_versions(mid)]
+    best = max(versions, key=lambda v: v["id"]) if versions else None
     fitted: dict[str, float] = best["model"]["params"] if best else {}
     for name, true_v in true_params.items():
         fit_v = fitted.get(name)

@@ -16,7 +16,7 @@ window.console3dat_live = { get lastFrame() { return lastFrame; }, get frames() 
 export function init(s) {
   session = s;
   const panEl = $("plot-pan"), tiltEl = $("plot-tilt");
-  makeChart(panEl, { height: 190, yLabel: "pan °", series: [line("pan", C.actual), line("pan target", C.target, { dash: [6, 4] })] });
+  makeChart(panEl, { height: 190, xLabel: "time (s)", yLabel: "pan °", series: [line("pan", C.actual), line("pan target", C.target, { dash: [6, 4] })] });
   makeChart(tiltEl, { height: 190, xLabel: "time (s)", yLabel: "tilt °", series: [line("tilt", C.actual), line("tilt target", C.target, { dash: [6, 4] })] });
   watchSize(panEl); watchSize(tiltEl);
   for (const el of [panEl, tiltEl]) el.addEventListener("dblclick", () => { zoomed = false; redraw(true); });

@@ -10,7 +10,7 @@ let busy = false;
 
 export function init(s) {
   session = s;
-  makeChart($("plot-overlay"), { height: 230, yLabel: "θ °", series: [line("measured", C.actual, { width: 2.4 }), line("model (k-step prediction)", C.target, { dash: [5, 3], width: 1.4 })] });
+  makeChart($("plot-overlay"), { height: 230, xLabel: "time (s)", yLabel: "θ °", series: [line("measured", C.actual, { width: 2.4 }), line("model (k-step prediction)", C.target, { dash: [5, 3], width: 1.4 })] });
   makeChart($("plot-residual"), { height: 140, xLabel: "time (s)", yLabel: "residual °", series: [line("residual", "#6f42c1")] });
   makeChart($("plot-acf"), { height: 150, yLabel: "autocorr.", xLabel: "lag (s)",
     series: [line("residual autocorrelation", C.actual), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });

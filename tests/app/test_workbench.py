@@ -142,8 +142,14 @@ def test_practice_rig_keeps_its_secret_until_revealed(rig: Rig) -> None:
     assert (
         rig.client.post("/api/v1/practice/experiments", headers=h, json={"kind": "dance"}).status_code == 422
     )
+    # work on the first recording after the second exists: the reveal compares that version
+    st = rig.client.get("/api/v1/practice", headers=h).json()
+    first = st["measurements"][0]
+    worked = rig.client.post(f"{API}/measurements/{first}/fit", headers=h, json={})
+    assert worked.status_code == 201, worked.text
     rev = rig.client.post("/api/v1/practice/reveal", headers=h).json()
     assert rev["revealed"] and len(rev["truth"]["effects"]) == 1
+    assert rev["compared_version"] == worked.json()["id"]
     hidden = rev["truth"]["effects"][0]
     assert any(row["param"].startswith(hidden + ".") for row in rev["params"])
 
