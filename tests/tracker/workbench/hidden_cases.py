@@ -1,0 +1,18 @@
+"""Shared, cached hidden-effect measurements for the diagnosis tests (generated once per session)."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+from tracker.plant.model import AxisModel
+from tracker.workbench.data import Measurement
+from tracker.workbench.experiments import generate_measurement, random_hidden_model
+
+DURATION_S = 24.0
+
+
+@lru_cache(maxsize=None)
+def hidden_case(effects: tuple[str, ...], seed: int) -> tuple[AxisModel, Measurement]:
+    """The true rig (pan preset + ``effects`` at random physical parameters) and its closed-loop log."""
+    true = random_hidden_model("pan", effects, seed) if effects else AxisModel.for_axis("pan")
+    return true, generate_measurement(true, DURATION_S, seed=seed)
