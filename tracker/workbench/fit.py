@@ -56,7 +56,7 @@ COARSE_DIFF_STEP = 2e-2
 MIN_CLUSTER_S = 0.25
 MIN_CLUSTERS = 12
 # Parameter pairs more correlated than this are reported as not separable.
-CORRELATION_WARNING = 0.98
+CORRELATION_WARNING = 0.995
 # Components fitted instead of (amplitude, phase).
 _POLAR = {"gravity": ("gravity.torque", "gravity.phase"), "ripple": ("ripple.amplitude", "ripple.phase")}
 
