@@ -82,9 +82,8 @@ def main() -> None:
         base = AxisModel.for_axis(axis, ["quantization"])
         full = every_effect(axis)
         print(f"{axis:5s} open loop,  base model          : {open_loop(base):6.3f} s")
-        print(
-            f"{axis:5s} open loop,  every effect on     : {open_loop(full):6.3f} s  ({', '.join(full.effects)})"
-        )
+        effects = ", ".join(full.effects)
+        print(f"{axis:5s} open loop,  every effect on     : {open_loop(full):6.3f} s  ({effects})")
         print(
             f"{axis:5s} closed loop, base twin          : {closed_loop(axis, base):6.3f} s  (observer_pd_ff)"
         )

@@ -92,7 +92,8 @@ def feedback_controller(model: AxisModel, gains: ControllerGains, dt_s: float = 
     obs = design_observer(model, gains.observer_bandwidth_hz, dt_s)
     a, b, c, ell = obs.a, obs.b.reshape(-1, 1), obs.c.reshape(1, -1), obs.l.reshape(-1, 1)
     m = np.eye(3) - ell @ c  # x̂ = M x⁻ + L y
-    g_fb = np.array([[gains.kp_v_per_rad, gains.kd_v_s_per_rad, 0.0]])
+    g_dist = gains.disturbance_comp / model.gain_nm_per_v
+    g_fb = np.array([[gains.kp_v_per_rad, gains.kd_v_s_per_rad, g_dist]])
     ki = gains.ki_v_per_rad_s
     # States s = [x⁻ (3), z]; u = −G x̂ + Ki z, z⁺ = z − Ts θ̂ (reference zero).
     cu = np.hstack([-g_fb @ m, [[ki]]])
@@ -180,13 +181,15 @@ def observer_pd_gains(
     phase_margin_deg: float = 60.0,
     observer_factor: float = 4.0,
     integral_ratio: float = 0.125,
+    friction_adapt_per_s: float = 3.0,
 ) -> ObserverPdGains:
     """Our design: PID on the observer's angle and velocity, plus model feedforward.
 
     On the double integrator k/s², PD phase lead φ = atan(Kd ωc/Kp) and |C P| = 1 at ωc set
     Kp and Kd; the integral zero sits at ``integral_ratio``·ωc; the observer runs
     ``observer_factor`` times faster than the crossover. The lead angle is then raised until
-    the *discrete* loop (ZOH, observer) has ``phase_margin_deg``.
+    the *discrete* loop (ZOH, observer) has ``phase_margin_deg``. The Coulomb feedforward
+    adapts to the rig at ``friction_adapt_per_s`` (slow and nonlinear: outside the margins).
     """
     k0 = model.gain_nm_per_v / model.params["inertia.J"]
     wc = 2.0 * math.pi * crossover_hz
@@ -196,7 +199,9 @@ def observer_pd_gains(
         t = math.tan(math.radians(lead_deg))
         kp = wc * wc / (k0 * math.sqrt(1.0 + t * t))
         kd = kp * t / wc
-        return ObserverPdGains(kp, kd, kp * integral_ratio * wc, obs_hz)
+        return ObserverPdGains(
+            kp, kd, kp * integral_ratio * wc, obs_hz, friction_adapt_per_s=friction_adapt_per_s
+        )
 
     def pm_error(lead_deg: float) -> float:
         return check_gains(model, gains_for(lead_deg)).phase_margin_deg - phase_margin_deg

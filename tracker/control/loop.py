@@ -6,7 +6,8 @@ and returns the command uₖ (V), held over [tₖ, tₖ₊₁):
 1. clamp the target into the soft limits and shape it (rate/acceleration limits) into a
    reference r, r', r'' (:mod:`tracker.control.trajectory`);
 2. correct the observer with yₖ (:mod:`tracker.control.observer`): θ̂, ω̂;
-3. law "observer_pd_ff": u = (J r'' + b r' + Fc·s)/K + Kp (r − θ̂) + Kd (r' − ω̂) + Ki ∫(r − θ̂),
+3. law "observer_pd_ff": u = (J r'' + b r' + Fc·s)/K + Kp (r − θ̂) + Kd (r' − ω̂) + Ki ∫(r − θ̂)
+   − g·(d̂/K + Fc·s/K) (the observer's residual disturbance torque, cancelled by a fraction g),
    with s = tanh(v/v_band) the smoothed friction sign, v = r' while the reference moves and the
    *observed* velocity ω̂ otherwise; the integrator stops while the command is saturated and its
    share is capped (anti-windup);
@@ -64,7 +65,13 @@ C_VMAX, C_AMAX, C_SHAPE = 31, 32, 33
 C_LO, C_HI, C_TMARG, C_GMARG, C_DECEL, C_LAT, C_UMAX, C_FF = 34, 35, 36, 37, 38, 39, 40, 41
 C_GA, C_GB, C_GL = 42, 51, 54  # the guard's own observer (fixed bandwidth, not a tunable gain)
 C_KJ = 57  # K/J, rad/s² per V, for the guard's worst case
-N_CP = 58
+C_DOB, C_INVK = 58, 59  # disturbance compensation gain, 1/K (V per N·m)
+C_ADAPT = 60  # Coulomb adaptation rate (1/s)
+N_CP = 61
+# Adapt only while reference and axis both move faster than this many friction bands.
+ADAPT_BANDS = 5.0
+# Adapted Coulomb stays within [0, ADAPT_MAX_FACTOR × the model's].
+ADAPT_MAX_FACTOR = 4.0
 # Controller state.
 S_X, S_INT, S_PREVY, S_LE, S_LU, S_REF, S_PREVT, S_INIT, S_TH, S_OM, S_GUARD, S_U = (
     0,
@@ -81,7 +88,8 @@ S_X, S_INT, S_PREVY, S_LE, S_LU, S_REF, S_PREVT, S_INIT, S_TH, S_OM, S_GUARD, S_
     15,
 )
 S_GX = 16
-N_CS = 19
+S_FCP, S_FCN = 19, 20  # adapted Coulomb feedforward (V), positive and negative direction
+N_CS = 21
 
 VELOCITY_OBSERVER, VELOCITY_DIFFERENCE = 0.0, 1.0
 
@@ -112,6 +120,8 @@ def pack_controller(
         cp[C_KP], cp[C_KD], cp[C_KI] = gains.kp_v_per_rad, gains.kd_v_s_per_rad, gains.ki_v_per_rad_s
         cp[C_ILIM] = gains.integral_limit_v
         cp[C_FF] = gains.feedforward
+        cp[C_DOB] = gains.disturbance_comp
+        cp[C_ADAPT] = gains.friction_adapt_per_s
         cp[C_FJ] = p["inertia.J"] / k
         cp[C_FB] = p["viscous.b"] / k
         cp[C_FCP] = p["coulomb.torque"] / k
@@ -138,6 +148,7 @@ def pack_controller(
     cp[C_LAT] = GUARD_LATENCY_S + p.get("delay.seconds", 0.0)
     cp[C_UMAX] = AMPLIFIER_LIMIT_V
     cp[C_KJ] = k / p["inertia.J"]
+    cp[C_INVK] = 1.0 / k
     return cp
 
 
@@ -179,6 +190,8 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
         cs[S_GX] = y_rad
         cs[S_GX + 1] = 0.0
         cs[S_GX + 2] = 0.0
+        cs[S_FCP] = cp[C_FCP]
+        cs[S_FCN] = cp[C_FCN]
         cs[S_INIT] = 1.0
     # 1. target → shaped reference.
     r = clamp_target(target_rad, cp[C_LO], cp[C_HI], cp[C_TMARG])
@@ -221,10 +234,25 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
             s = math.tanh(excess / band) if excess > 0.0 else 0.0
             if om_fb < 0.0:
                 s = -s
-        fc = cp[C_FCP] if s > 0.0 else cp[C_FCN]
-        u_ff = cp[C_FF] * (cp[C_FJ] * ref_a + cp[C_FB] * ref_v) + cp[C_FSCALE] * fc * s
+        fc = cs[S_FCP] if s > 0.0 else cs[S_FCN]
+        u_fric = cp[C_FSCALE] * fc * s
+        moving = abs(ref_v) > ADAPT_BANDS * band and om * ref_v > 0.0 and abs(om) > ADAPT_BANDS * band
+        if cp[C_ADAPT] > 0.0 and moving:
+            # The observer's torque estimate d̂ is −(true friction) while moving; what the
+            # feedforward leaves over, r = d̂/K + u_fric, says how wrong the Coulomb value is.
+            # (Inertia and gravity errors average out over a motion; friction's sign does not.)
+            r = dist * cp[C_INVK] + u_fric
+            if s > 0.0:
+                cs[S_FCP] = min(max(cs[S_FCP] - cp[C_ADAPT] * dt * r, 0.0), ADAPT_MAX_FACTOR * cp[C_FCP])
+            else:
+                cs[S_FCN] = min(max(cs[S_FCN] + cp[C_ADAPT] * dt * r, 0.0), ADAPT_MAX_FACTOR * cp[C_FCN])
+        u_ff = cp[C_FF] * (cp[C_FJ] * ref_a + cp[C_FB] * ref_v) + u_fric
         u_i = cp[C_KI] * cs[S_INT]
-        u = u_ff + cp[C_KP] * e + cp[C_KD] * (ref_v - om_fb) + u_i
+        # Disturbance compensation: cancel what the observer's torque estimate says the
+        # friction feedforward has not already cancelled, capped like the integrator.
+        u_d = -cp[C_DOB] * (dist * cp[C_INVK] + u_fric)
+        u_d = _clip(u_d, cp[C_ILIM])
+        u = u_ff + cp[C_KP] * e + cp[C_KD] * (ref_v - om_fb) + u_i + u_d
         # Anti-windup: integrate only while the command is not pushed further into saturation.
         if not ((u > umax and e > 0.0) or (u < -umax and e < 0.0)):
             cs[S_INT] += e * dt

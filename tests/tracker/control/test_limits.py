@@ -42,6 +42,8 @@ pd_gains = st.builds(
     friction_comp=st.floats(-5.0, 5.0),
     friction_band_rad_s=st.floats(1e-4, 1.0),
     integral_limit_v=st.floats(0.0, 100.0),
+    disturbance_comp=st.floats(-2.0, 2.0),
+    friction_adapt_per_s=st.floats(0.0, 1000.0),
 )
 lead_gains = st.builds(LeadGains, gain_v_per_rad=signed, zero=st.floats(-1.5, 1.5), pole=st.floats(-1.2, 1.2))
 
