@@ -1,13 +1,16 @@
 """Workbench benchmark: fit and compare time for 30 s at 1 kHz, parameter recovery, and EMPS figures.
 
 Run: ``.venv/bin/python bench/bench_workbench.py`` (add ``--quick`` to skip the per-effect table).
-Times are the median of 3 runs after a warm-up (numba compiles once and caches).
+Times are the median of 3 runs after a warm-up (numba compiles once and caches). On this shared
+2-core machine OpenBLAS threads fight each other: ``OPENBLAS_NUM_THREADS=1`` roughly halves the
+fit time (the fit's linear algebra is small; threading only adds overhead).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import sys
 import time
@@ -54,7 +57,8 @@ def start_model(effects: tuple[str, ...]) -> AxisModel:
 
 def speed(meas: Measurement) -> None:
     base = start_model(("offset",))
-    print("== speed: 30 s at 1 kHz, pan + offset, closed loop ==")
+    threads = os.environ.get("OPENBLAS_NUM_THREADS", "unset")
+    print(f"== speed: 30 s at 1 kHz, pan + offset, closed loop (OPENBLAS_NUM_THREADS={threads}) ==")
     print(
         f"fit (k-step, default horizon)       {timed(lambda: fit_model(meas, base)):6.3f} s   (target <= 1 s)"
     )

@@ -221,7 +221,9 @@ def fit_inverse_dynamics(
         A = np.column_stack(cols)
         scale = np.maximum(np.sqrt(np.mean(A * A, axis=0)), 1e-300)
         lo_hi = np.array([_bounds(n) for n in names]).T
-        sol = lsq_linear(A / scale, rhs, bounds=(lo_hi[0] * scale, lo_hi[1] * scale), method="bvls")
+        # Bounded LS on the QR-reduced p×p problem: same solution, no n-long iterations.
+        q, r = np.linalg.qr(A / scale)
+        sol = lsq_linear(r, q.T @ rhs, bounds=(lo_hi[0] * scale, lo_hi[1] * scale), method="bvls")
         coef = sol.x / scale
         for name, c in zip(names, coef, strict=True):
             params[name] = float(c)
