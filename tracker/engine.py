@@ -338,7 +338,7 @@ class Engine:
                 ax.target_rad = self._last_target[a]
             self._initialised = True
         targets = self._chunk_targets(n)
-        t_chunk = self._t + np.arange(n) * self._dt
+        t_chunk = self._t + np.arange(n, dtype=np.float64) * self._dt
         records: dict[str, np.ndarray] = {}
         if isinstance(self._driver, ClosedLoopDriver) and hasattr(self._driver, "run_closed_loop"):
             for a, ax in self._axes.items():

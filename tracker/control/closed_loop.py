@@ -85,7 +85,7 @@ def run_chunk(
             done = k + 1
             break
     u_hist[:] = buf[done : done + h]
-    return done
+    return int(done)
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,7 +138,7 @@ def simulate_closed_loop(
     n = run_chunk(pp, cp, cs, x, u_hist, tgt, dist, True, hard_limit_rad, rec)
     rec = rec[:n]
     return ClosedLoopResult(
-        np.arange(n) * dt_s,
+        np.arange(n, dtype=np.float64) * dt_s,
         tgt[:n],
         rec[:, R_U].copy(),
         rec[:, R_Y].copy(),
