@@ -46,6 +46,7 @@ class TrackerSettings:
     fine_std_rad: float = float(np.deg2rad(2.0))
     accel_std_rad_s2: float = float(np.deg2rad(20.0))
     max_rate_rad_s: float = float(np.deg2rad(30.0))
+    short_updates_with_fine: bool = True
     gate_rad: float = float(np.deg2rad(10.0))
     reaction_time_s: float = 0.3
     candidate_share: float = 0.6
@@ -217,12 +218,14 @@ class TalkerTracker:
             spread = 3.0 * np.sqrt(self._talker.p[0, 0] + s.measurement_std_rad**2)
             gate = float(np.clip(spread, s.gate_rad, 1.5 * s.gate_rad))
             short_in_gate = z is not None and abs(self._talker.innovation(z)) <= gate
-            if fine is not None and abs(self._talker.innovation(fine)) <= gate:
+            fine_in_gate = fine is not None and abs(self._talker.innovation(fine)) <= gate
+            if fine_in_gate:
+                assert fine is not None
                 self._talker.update(fine, s.fine_std_rad**2, fine_lag_s)
-                self._talker.limit_rate(s.max_rate_rad_s)
-            elif short_in_gate:
+            if short_in_gate and (s.short_updates_with_fine or not fine_in_gate):
                 assert z is not None
                 self._talker.update(z, s.measurement_std_rad**2)
+            if fine_in_gate or short_in_gate:
                 self._talker.limit_rate(s.max_rate_rad_s)
             else:
                 # No evidence for this talker: the track stays where it was (no coasting).

@@ -104,6 +104,26 @@ def snr_weights(spectra: ComplexArray, noise_quantile: float = 0.1) -> FloatArra
     return np.asarray(np.clip(1.0 - noise / (power.mean(axis=0) + 1e-30), 0.0, 1.0))
 
 
+def onset_weights(spectra: ComplexArray, power: float = 2.0) -> FloatArray:
+    """Per time-frequency weight ``clip(1 - P(t-1, f) / P(t, f), 0, 1) ** power``.
+
+    Bins whose power is rising hold the start of a sound, which reaches the array by the
+    direct path before its reflections do (the precedence effect); bins in a decaying tail are
+    mostly reverberation and get little weight.
+
+    Parameters
+    ----------
+    spectra : ndarray, shape (n_mics, n_frames, n_freq)
+
+    Returns
+    -------
+    ndarray, shape (n_frames, n_freq)
+    """
+    p = np.mean(np.abs(spectra) ** 2, axis=0)
+    previous = np.concatenate([p[:1], p[:-1]], axis=0)
+    return np.asarray(np.clip(1.0 - previous / (p + 1e-30), 0.0, 1.0) ** power)
+
+
 def phat(cross: ComplexArray, mask: NDArray[np.bool_], beta: float = 1.0) -> ComplexArray:
     """PHAT weighting ``C / |C|**beta`` restricted to ``mask``; shape unchanged.
 
