@@ -100,9 +100,7 @@ class Pipeline:
     vad: VadSettings = field(default_factory=VadSettings)
     tracking: TrackerSettings = field(default_factory=TrackerSettings)
     localizer_options: dict[str, Any] = field(default_factory=dict)
-    # Share of the long window's lag the tracker compensates; 0 = treat it as current. Full
-    # compensation made the rate estimate chase noise in the meeting scenario.
-    fine_lag_fraction: float = 0.0
+    fine_lag_fraction: float = 1.0
     localizer: Localizer = field(init=False)
 
     def __post_init__(self) -> None:

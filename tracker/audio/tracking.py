@@ -169,8 +169,7 @@ class TalkerTracker:
         ``azimuth_rad`` comes from a short window (quick to show a new talker);
         ``fine_azimuth_rad``, when given, from a longer window ending at the same time: it
         refines the current talker's position but never starts a switch; its centre lies
-        ``fine_lag_s`` before the short window's, which the filter accounts for (a walker's
-        position is not pulled back by the long window's lag).
+        ``fine_lag_s`` before the short window's, so it counts less while the talker walks.
         """
         s = self.settings
         finite = bool(np.isfinite(azimuth_rad))
@@ -221,7 +220,10 @@ class TalkerTracker:
             fine_in_gate = fine is not None and abs(self._talker.innovation(fine)) <= gate
             if fine_in_gate:
                 assert fine is not None
-                self._talker.update(fine, s.fine_std_rad**2, fine_lag_s)
+                # The long window lags a walker by fine_lag_s: trust it less the faster the
+                # talker moves, so the short windows carry a walker and the long one a sitter.
+                lag_error = fine_lag_s * float(self._talker.x[1])
+                self._talker.update(fine, s.fine_std_rad**2 + lag_error**2)
             if short_in_gate and (s.short_updates_with_fine or not fine_in_gate):
                 assert z is not None
                 self._talker.update(z, s.measurement_std_rad**2)
