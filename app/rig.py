@@ -109,7 +109,13 @@ def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:
 
     Returns (handle, note); the handle is None and the note says why when audio is unavailable.
     """
-    return None, "audio target source not wired yet"
+    from app.audio import start_meeting_source
+
+    try:
+        source = start_meeting_source(engine, settings.data_dir)
+    except ImportError as exc:  # audio stack missing: manual pointing still works
+        return None, f"audio unavailable: {exc}"
+    return source, None
 
 
 async def detach_audio(handle: Any) -> None:

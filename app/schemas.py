@@ -27,6 +27,7 @@ class StatusOut(BaseModel):
     control_holder: dict[str, Any] | None = Field(None, description="who holds manual control")
     limits_deg: dict[str, float]
     telemetry_clients: int
+    audio: str = Field("off", description="the simulated room's state as target source")
     viewer: dict[str, Any] | None = None
 
 

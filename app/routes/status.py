@@ -30,6 +30,7 @@ def status_of(svc: Service) -> StatusOut:
         control_holder=svc.lock.describe(),
         limits_deg=svc.limits_deg(),
         telemetry_clients=svc.hub.clients,
+        audio=audio_state(svc),
         viewer=svc.viewer.scene_state() if svc.viewer is not None else None,
     )
 
@@ -51,4 +52,9 @@ async def get_viewer(svc: Svc, who: Viewer) -> dict[str, Any]:
 
 @router.get("/health", summary="Liveness (no key needed)")
 async def health(svc: Svc) -> dict[str, Any]:
-    return {"ok": svc.engine_running, "engine_running": svc.engine_running, "audio": svc.audio_note or "on"}
+    return {"ok": svc.engine_running, "engine_running": svc.engine_running, "audio": audio_state(svc)}
+
+
+def audio_state(svc: Service) -> str:
+    """ "off", "ready", "preparing ...", or why audio is unavailable."""
+    return svc.audio_note or (getattr(svc.audio, "note", "on") if svc.audio is not None else "off")

@@ -95,6 +95,7 @@ async function refreshStatus() {
     limits = s.limits_deg;
     $("mode").textContent = s.mode;
     $("talker").textContent = s.active_talker || "–";
+    $("audio").textContent = s.audio === "ready" ? "simulated meeting (room model → localizer → talker tracker)" : s.audio;
     $("faults").textContent = s.faults.length ? s.faults.join(", ") : "none";
     $("faults").style.color = s.faults.length ? "var(--bad)" : "";
     $("holder").textContent = s.control_holder ? `${s.control_holder.name} (${s.control_holder.held_s} s)` : "nobody";

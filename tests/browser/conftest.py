@@ -69,6 +69,8 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
         TRACKER_HOST="127.0.0.1",
         TRACKER_VIEWER_PORT=str(vport),
         TRACKER_LOG_LEVEL="warning",
+        # The simulated meeting costs ~40 s of CPU to build; app/audio.py has its own tests.
+        TRACKER_AUDIO_ENABLED="false",
     )
     log = open(data / "server.log", "w")  # noqa: SIM115
     proc = subprocess.Popen(
