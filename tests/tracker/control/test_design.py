@@ -71,3 +71,19 @@ def test_check_gains_flags_an_unstable_loop() -> None:
 def test_unknown_controller_names_the_known_ones() -> None:
     with pytest.raises(ConfigError, match="observer_pd_ff"):
         design_controller(AxisModel.for_axis("pan"), "pid_magic")
+
+
+@pytest.mark.parametrize(
+    "gains",
+    [
+        LeadGains(200.0, 0.97, 0.87),
+        ObserverPdGains(100.0, 2.0, 300.0, 60.0),
+        ObserverPdGains(400.0, 0.2, 0.0, 40.0),
+    ],
+    ids=["lead", "pid-observer", "barely-stable"],
+)
+def test_fast_phase_margin_used_in_design_iterations_agrees_with_python_control(gains: object) -> None:
+    from tracker.control.design import phase_margin_fast_deg
+
+    m = AxisModel.for_axis("pan")
+    assert phase_margin_fast_deg(m, gains) == pytest.approx(check_gains(m, gains).phase_margin_deg, abs=0.01)  # type: ignore[arg-type]

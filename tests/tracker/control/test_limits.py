@@ -129,3 +129,25 @@ def test_guard_counts_on_the_push_of_the_current_command_during_the_latency() ->
     assert guard_command(0.0, 0.99, 0.0, 0.99, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 0.0
     assert guard_command(10.0, 0.99, 0.0, 0.99, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 0.0
     assert guard_command(1e9, 0.5, 0.0, 0.5, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 10.0
+
+
+@pytest.mark.parametrize(("axis", "target_deg"), [("pan", 90.0), ("tilt", -45.0), ("tilt", 60.0)])
+def test_moving_to_the_limit_is_smooth_and_stops_just_inside(axis: str, target_deg: float) -> None:
+    """The clamp and the shaper keep normal motion off the guard: no full-command brake."""
+    from tracker.control.design import design_controller
+
+    model = AxisModel.for_axis(axis)
+    gains = design_controller(model, axis=axis).gains
+    limits = SoftLimits.for_axis(axis)
+    r = simulate_closed_loop(
+        model.with_effect("quantization"),
+        model,
+        gains,
+        np.full(3000, math.radians(target_deg)),
+        DT,
+        limits,
+        DEFAULT_LIMITS[axis],
+    )
+    edge = math.copysign(limits.upper_rad - limits.target_margin_rad, target_deg)
+    assert r.load_theta_rad[-1] == pytest.approx(edge, abs=2e-4)
+    assert np.max(np.abs(r.u_v)) < 3.0
