@@ -43,6 +43,7 @@ MIN_KSTEP_ROBUST = 0.025
 MIN_BREAKAWAY_T = 4.0
 REFINE_TOP = 2
 MIN_BACKLASH_GAIN = 0.15
+MIN_DELAY_SAMPLES = 0.5
 MIN_HELD_OUT_GAIN = 0.05
 STICTION_RATIOS = (1.1, 1.25, 1.4, 1.6, 1.8, 2.0, 2.4)  # break-away / Coulomb tried by simulation
 STRIBECK_VELOCITIES = (0.02, 0.05, 0.1)  # rad/s
@@ -222,6 +223,7 @@ def diagnose(
         sig_ok = screen_ok and _kstep_ok(effect, cmp)
         if effect == "backlash":
             sig_ok = _backlash_significant(scr, screens)
+        sig_ok = sig_ok and _physical(effect, cand_model, sig.dt_s)
         rows.append([effect, scr, cand_model, score, cmp, sig_ok, screen_ok])
     step(0.7)
     # Best first: significant ones, then the rest.
@@ -243,7 +245,7 @@ def diagnose(
             cmp = judge.compare(base_score, score)
             r[2], r[3], r[4] = refined, score, cmp
             sim_stderr[r[0]] = se
-            r[5] = _kstep_ok(r[0], cmp) if r[0] != "backlash" else r[5]
+            r[5] = (_kstep_ok(r[0], cmp) if r[0] != "backlash" else r[5]) and _physical(r[0], refined, sig.dt_s)
     rows.sort(key=_rank_key)
     _prefer_offset(rows)
 
@@ -273,6 +275,10 @@ def diagnose(
         candidates.append(_quantization_candidate(ctx, current.fit_percent, judge, base_score))
     verdict = candidates[0].effect if candidates and candidates[0].significant else None
     notes = notes_for(candidates, ctx, verdict)
+    if base_model is not model:
+        notes = (f"the current model's parameters are far from this data: with its base parameters refitted by "
+                 f"inverse dynamics the fit is {refit_score.fit_percent:.3f} % instead of {current.fit_percent:.3f} %; "
+                 "candidates are judged against that refit (run `tracker model fit`)",) + notes
     step(1.0)
     return Diagnosis(current.fit_percent, verdict, tuple(candidates), notes, time.perf_counter() - t0,
                      dict(base_model.params))
@@ -290,6 +296,14 @@ def _stiction_search(judge: KStepJudge, base: AxisModel, base_score: KStepScore,
             grid.append(with_values(base, {"stiction.static_torque": fc * ratio, "stiction.velocity": vs},
                                     add="stiction"))
     return held_out_search(judge, base_score, grid)
+
+
+def _physical(effect: str, model: AxisModel, dt_s: float) -> bool:
+    """False for values that are no physical effect: a delay below half a sample period is the
+    sampling convention (when in the period the encoder is read), not a transport delay."""
+    if effect == "delay":
+        return model.params["delay.seconds"] >= MIN_DELAY_SAMPLES * dt_s
+    return True
 
 
 def _kstep_ok(effect: str, cmp: Comparison) -> bool:

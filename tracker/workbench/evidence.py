@@ -84,7 +84,8 @@ class EvidenceContext:
 
 
 def _mnm(x: float) -> str:
-    return f"{1e3 * x:+.1f} mN·m"
+    """A torque for the evidence text (N·m; N on a linear axis)."""
+    return f"{x:+.3g} N·m"
 
 
 def _direction_means(ctx: EvidenceContext) -> tuple[float, float, float]:
@@ -123,12 +124,12 @@ def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, pa
         same = (mp > 0) == (mn > 0)
         kind = "the same sign both ways: a bias torque" if same else "opposite signs: direction-dependent"
         head = (f"residual torque averages {_mnm(mp)} moving positive and {_mnm(mn)} moving negative "
-                f"(±{1e3 * se:.1f}), {kind}")
+                f"(± {se:.2g}), {kind}")
         if effect == "offset":
             head += f"; bias {_mnm(p['offset.torque'])}"
         else:
-            head += (f"; Coulomb {1e3 * p['coulomb.torque']:.1f} mN·m positive, "
-                     f"{1e3 * p['coulomb_asymmetry.negative']:.1f} mN·m negative")
+            head += (f"; Coulomb {p['coulomb.torque']:.3g} N·m positive, "
+                     f"{p['coulomb_asymmetry.negative']:.3g} N·m negative")
         return head + tail
     if effect == "viscous_asymmetry":
         return (f"residual torque grows with speed differently by direction: viscous "
@@ -139,26 +140,28 @@ def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, pa
         r = ctx.base_reg.residual
         rr = float(np.corrcoef(r, g)[0, 1]) if np.std(g) > 0 and np.std(r) > 0 else 0.0
         return (f"residual torque follows sin(θ {p['gravity.phase']:+.2f} rad) (r = {rr:.2f}), "
-                f"amplitude {1e3 * p['gravity.torque']:.1f} mN·m over a {np.ptp(th):.2f} rad range" + tail)
+                f"amplitude {p['gravity.torque']:.3g} N·m over a {np.ptp(th):.2f} rad range" + tail)
     if effect == "ripple":
         return (f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.0f} cycles per revolution "
                 f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
-                f"{1e3 * p['ripple.amplitude']:.1f} mN·m" + tail)
+                f"{p['ripple.amplitude']:.3g} N·m" + tail)
     if effect == "stiction":
         e, tfrac = ctx.rest_share
         ba = ctx.breakaway
         extra = ""
         if ba is not None:
-            extra = (f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {1e3 * ba.static_excess_se:.1f} "
-                     f"over Coulomb in {ba.count} starts")
+            extra = (f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {ba.static_excess_se:.2g} "
+                     f"over Coulomb in {ba.count} creeping starts")
         return (f"error concentrates at starts from rest ({100 * e:.0f} % of the prediction error in the "
                 f"{100 * tfrac:.0f} % of windows that start at rest){extra}; break-away "
-                f"{1e3 * p['stiction.static_torque']:.1f} mN·m, Stribeck velocity {p['stiction.velocity']:.3g} rad/s" + tail)
+                f"{p['stiction.static_torque']:.3g} N·m, Stribeck velocity {p['stiction.velocity']:.3g} rad/s" + tail)
     if effect == "delay":
         ba = ctx.breakaway
         extra = ""
         if ba is not None and math.isfinite(ba.delay_se):
             extra = f"; break-away lags the command by {1e3 * ba.delay_s:.1f} ± {1e3 * ba.delay_se:.1f} ms"
+        if p["delay.seconds"] < 0.5 * sig.dt_s:
+            extra += " (under half a sample period: the sampling convention, not a drive delay)"
         return (f"input–residual alignment is best with the command delayed by "
                 f"{1e3 * p['delay.seconds']:.1f} ms{extra}" + tail)
     if effect == "saturation":
@@ -208,7 +211,7 @@ def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: st
         if ba is not None:
             notes.append(
                 f"stiction and delay both live at reversals; {ba.count} starts from rest give a break-away excess "
-                f"of {_mnm(ba.static_excess_nm)} ± {1e3 * ba.static_excess_se:.1f} at zero command rate (stiction) "
+                f"of {_mnm(ba.static_excess_nm)} ± {ba.static_excess_se:.2g} at zero command rate (stiction) "
                 f"and a lag of {1e3 * ba.delay_s:.1f} ± {1e3 * ba.delay_se:.1f} ms (delay). To be sure: "
                 + EXPERIMENTS["stiction"]
             )
