@@ -377,6 +377,14 @@ class Engine:
     def _chunk_targets(self, n: int) -> dict[str, np.ndarray]:
         start = dict(self._last_target)
         self._talker_fresh = False
+        heard = None
+        if self._tracking and self._source is not None:
+            # Asked even when manual or disabled: the console shows what the localizer hears.
+            heard = as_target(self._source.target_at(self._t + n * self._dt), self._source_name or "source")
+            if heard is not None:
+                self._talker_fresh = True
+                self._talker = heard.talker
+                self._estimate = (heard.azimuth_rad, heard.elevation_rad)
         if not self._driver.enabled and not self._manual:
             # Disabled or faulted: hold wherever the axes are, so re-enabling does not jump.
             for a, ax in self._axes.items():
@@ -389,15 +397,10 @@ class Engine:
                 lim = self._axes[a].limits
                 edge = lim.upper_rad - lim.target_margin_rad
                 self._last_target[a] = float(np.clip(self._last_target[a] + rate * n * self._dt, -edge, edge))
-        elif self._tracking and self._source is not None:
-            target = as_target(self._source.target_at(self._t + n * self._dt), self._source_name or "source")
-            if target is not None:
-                self._talker_fresh = True
-                self._talker = target.talker
-                self._estimate = (target.azimuth_rad, target.elevation_rad)
-                for a, value in (("pan", target.pan_rad), ("tilt", target.tilt_rad)):
-                    lim = self._axes[a].limits
-                    self._last_target[a] = float(np.clip(value, lim.lower_rad, lim.upper_rad))
+        elif heard is not None:
+            for a, value in (("pan", heard.pan_rad), ("tilt", heard.tilt_rad)):
+                lim = self._axes[a].limits
+                self._last_target[a] = float(np.clip(value, lim.lower_rad, lim.upper_rad))
         frac = np.arange(1, n + 1) / n
         return {a: start[a] + (self._last_target[a] - start[a]) * frac for a in AXES}
 

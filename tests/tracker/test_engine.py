@@ -9,7 +9,7 @@ from tracker.control.gains import ObserverPdGains
 from tracker.drivers.sim import SimDriver
 from tracker.engine import Engine, TelemetrySnapshot
 from tracker.errors import ConfigError
-from tracker.targets import FunctionTarget
+from tracker.targets import FunctionTarget, Target
 
 
 def run(engine: Engine, seconds: float) -> None:
@@ -186,3 +186,43 @@ def test_jog_faster_than_the_axis_rate_limit_is_refused() -> None:
     e = Engine(SimDriver())
     with pytest.raises(ConfigError, match="rate limit"):
         e.jog("tilt", 10.0)
+
+
+def test_realtime_mode_keeps_pace_with_the_wall_clock() -> None:
+    import time
+
+    e = Engine(SimDriver())
+    e.step_chunk()  # first chunk outside the timing (compiled code is loaded)
+    t0 = time.perf_counter()
+    asyncio.run(e.run(realtime=True, duration_s=0.3))
+    assert time.perf_counter() - t0 >= 0.29
+    assert e.status().t_s == pytest.approx(0.31)
+
+
+def test_jog_rate_zero_is_the_release_of_the_button() -> None:
+    drv = SimDriver()
+    e = Engine(drv)
+    e.jog("tilt", -0.4, timeout_s=5.0)
+    run(e, 0.25)
+    e.jog("tilt", 0.0)
+    run(e, 0.75)
+    # ≈ 0.25 s at −0.4 rad/s, then held.
+    assert drv.load_angle_rad("tilt") == pytest.approx(-0.1, abs=0.012)
+
+
+def test_a_talker_source_reports_who_and_where_it_heard() -> None:
+    e = Engine(SimDriver())
+    e.set_target_source(
+        FunctionTarget(
+            lambda t: Target(0.2, 0.05, talker="alice", azimuth_rad=0.21, elevation_rad=0.04), "audio"
+        )
+    )
+    e.set_tracking(True)
+    sub = e.subscribe()
+    e.step_chunk()  # the driver is still disabled: the estimate is reported all the same
+    snap = sub._queue.get_nowait()
+    assert snap is not None and snap.source == "audio" and snap.estimate_azimuth_rad == 0.21
+    assert e.status().active_talker == "alice" and e.status().mode == "disabled"
+    e.driver.enable()
+    run(e, 0.6)
+    assert e.status().mode == "tracking" and e.status().pan_rad == pytest.approx(0.2, abs=1e-3)
