@@ -74,17 +74,17 @@ class MicArray:
     def baselines_m(self) -> FloatArray:
         """Pair baselines ``p_i - p_j``; shape (n_pairs, 3)."""
         i, j = np.array(self.pairs).T
-        return self.positions_m[i] - self.positions_m[j]
+        return np.asarray(self.positions_m[i] - self.positions_m[j], dtype=float)
 
     @property
     def max_lag_s(self) -> FloatArray:
         """Physical lag limit ``|p_i - p_j| / c`` of each pair; shape (n_pairs,)."""
-        return np.linalg.norm(self.baselines_m, axis=1) / SPEED_OF_SOUND_M_PER_S
+        return np.asarray(np.linalg.norm(self.baselines_m, axis=1) / SPEED_OF_SOUND_M_PER_S)
 
     @property
     def extent_m(self) -> FloatArray:
         """Span of the array along x, y and z; shape (3,)."""
-        return np.ptp(self.positions_m, axis=0)
+        return np.asarray(np.ptp(self.positions_m, axis=0), dtype=float)
 
     @property
     def resolves_elevation(self) -> bool:
@@ -154,7 +154,7 @@ def rotation_world_head(pan_rad: float, tilt_rad: float) -> FloatArray:
     ct, st = np.cos(tilt_rad), np.sin(tilt_rad)
     r_pan = np.array([[cp, -sp, 0.0], [sp, cp, 0.0], [0.0, 0.0, 1.0]])
     r_tilt = np.array([[ct, 0.0, -st], [0.0, 1.0, 0.0], [st, 0.0, ct]])
-    return r_pan @ r_tilt
+    return np.asarray(r_pan @ r_tilt)
 
 
 @dataclass(frozen=True, slots=True)

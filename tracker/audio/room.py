@@ -135,7 +135,7 @@ class Recording:
     @property
     def duration_s(self) -> float:
         """Length in seconds."""
-        return self.audio.shape[1] / self.fs_hz
+        return float(self.audio.shape[1] / self.fs_hz)
 
     def directions(self, times_s: FloatArray) -> FloatArray:
         """True azimuth/elevation (rad) of every talker; shape (n_talkers, n_times, 2)."""
@@ -214,8 +214,8 @@ def simulate(
                 pieces.append((source_at(position), lo, piece))
     room.compute_rir()
     rng = np.random.default_rng(seed + 7919)
-    rirs = [np.array([room.rir[m][k] for m in range(array.n_mics)], dtype=object)
-            for k in range(len(sources))]
+    rirs: list[list[FloatArray]] = [[np.asarray(room.rir[m][k]) for m in range(array.n_mics)]
+                                    for k in range(len(sources))]
     if hybrid:
         rirs = [with_late_tail(list(r), mics_room, settings, rng) for r in rirs]
     rir_len = max(len(r[m]) for r in rirs for m in range(array.n_mics))
@@ -303,4 +303,4 @@ def position_from_direction(placement: Placement, azimuth_rad: float, distance_m
     v_array = np.array([np.cos(azimuth_rad), np.sin(azimuth_rad), 0.0]) * distance_m
     point = placement.to_room(v_array[None, :])[0]
     point[2] = mouth_height_m
-    return point
+    return np.asarray(point, dtype=float)

@@ -100,8 +100,9 @@ def synthetic_speech(duration_s: float, fs_hz: int = 16000, seed: int = 0,
     """Deterministic speech-like signal: phrases of syllables with pauses.
 
     Glottal pulse train (pitch 90-220 Hz, gliding within each syllable and declining over a
-    phrase) through five formant resonators (three per vowel, two fixed higher ones), syllables of 120-300 ms at about 4 per
-    second with fricative onsets, phrases of 1-3.5 s separated by 0.15-0.6 s pauses.
+    phrase) through five formant resonators (three per vowel, two fixed higher ones),
+    syllables of 120-300 ms at about 4 per second with fricative onsets, phrases of 1-3.5 s
+    separated by 0.15-0.6 s pauses.
 
     Parameters
     ----------

@@ -26,7 +26,6 @@ import numpy as np
 
 from tracker.errors import ConfigError
 
-
 _MAX_CANDIDATES = 3
 
 

@@ -68,10 +68,10 @@ def summary(result: LocateResult, name: str) -> str:
         f"{len(speech)} with speech",
     ]
     if speech:
-        az = np.rad2deg([f.azimuth_rad for f in speech])
-        lines.append(f"speech azimuth: median {np.median(az):.1f}°, range {az.min():.1f}° to "
-                     f"{az.max():.1f}°")
-    last_az = None
+        speech_deg = np.rad2deg([f.azimuth_rad for f in speech])
+        lines.append(f"speech azimuth: median {np.median(speech_deg):.1f}°, range "
+                     f"{speech_deg.min():.1f}° to {speech_deg.max():.1f}°")
+    last_az: float | None = None
     for point in result.track:
         if point.shot == "none":
             continue

@@ -189,12 +189,12 @@ def run_meeting(seed: int = 0, duration_s: float = 60.0,
                         localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)})
     frames = pipeline.estimate_frames(recording.audio)
     track = pipeline.track(frames)
-    times = np.arange(int(round(duration_s / _DT_S))) * _DT_S
+    times = np.arange(int(round(duration_s / _DT_S)), dtype=float) * _DT_S
     # Each target applies from the end of its window: that is when a live system has it.
     ends = np.array([f.end_s for f in frames])
-    targets = np.array([p.azimuth_rad for p in track])
+    targets = np.array([p.azimuth_rad for p in track], dtype=float)
     index = np.searchsorted(ends, times, side="right") - 1
-    target_rad = np.where(index >= 0, targets[np.clip(index, 0, None)], 0.0)
+    target_rad = np.asarray(np.where(index >= 0, targets[np.clip(index, 0, None)], 0.0), dtype=float)
     pan_rad, plant = _pan_response(target_rad)
     return score_meeting(recording, turns, times, pan_rad, targets, seed, plant)
 

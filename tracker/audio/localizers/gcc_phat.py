@@ -96,7 +96,7 @@ def direction_from_delays(array: MicArray, delays_s: FloatArray, weights: FloatA
     _, s, vt = np.linalg.svd(b, full_matrices=True)
     rank = int(np.sum(s > 1e-6 * s[0]))
     u, *_ = np.linalg.lstsq(b, rhs, rcond=1e-6)
-    norm = np.linalg.norm(u)
+    norm = float(np.linalg.norm(u))
     if rank == 3 or norm >= 1.0:
         return np.asarray(u / max(norm, 1e-12))
     null = vt[rank:]  # rows span what the array cannot observe

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy import signal
 
 from tracker.audio.array import MicArray
@@ -60,7 +61,7 @@ class SeedRms:
         count = np.arange(n) - starts + 1
         return np.asarray(np.sqrt((cumulative - before) / count))
 
-    def _peak_times(self, rms: FloatArray) -> list[FloatArray]:
+    def _peak_times(self, rms: FloatArray) -> list[NDArray[np.intp]]:
         """Sample indices of rising threshold crossings of the RMS step, per mic."""
         d = self.step_samples
         step = np.zeros_like(rms)

@@ -24,7 +24,8 @@ class SpectralSettings:
     nfft : int
         FFT length in samples (512 = 32 ms at 16 kHz).
     band_hz : tuple of float
-        Frequencies kept for localization; voiced speech carries direction cues in 200 Hz - 7.5 kHz (bins above Nyquist are ignored).
+        Frequencies kept for localization; voiced speech carries direction cues in
+        200 Hz - 7.5 kHz (bins above Nyquist are ignored).
     upsample : int
         GCC interpolation factor: lag resolution is ``1 / (fs * upsample)``.
     phat_beta : float
@@ -81,7 +82,7 @@ def pair_cross_spectra(spectra: ComplexArray, array: MicArray, weights: FloatArr
     cross = spectra[i] * np.conj(spectra[j])
     if weights is not None:
         cross = cross * weights[None]
-    return cross.sum(axis=1)
+    return np.asarray(cross.sum(axis=1))
 
 
 def snr_weights(spectra: ComplexArray, noise_quantile: float = 0.1) -> FloatArray:
@@ -146,7 +147,7 @@ def gcc(cross: ComplexArray, settings: SpectralSettings) -> FloatArray:
     n_lags = settings.nfft * settings.upsample
     total = np.sum(np.abs(cross), axis=-1, keepdims=True) + _EPS
     # irfft divides by n_lags and counts each positive bin twice (Hermitian symmetry).
-    return np.fft.irfft(cross, n=n_lags, axis=-1) * (n_lags / (2.0 * total))
+    return np.asarray(np.fft.irfft(cross, n=n_lags, axis=-1) * (n_lags / (2.0 * total)))
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,6 +14,7 @@ from tracker.audio.localizers.base import (
     wrap_angle,
 )
 from tracker.audio.localizers.spectra import (
+    ComplexArray,
     SpectralSettings,
     SrpGrid,
     band_mask,
@@ -59,7 +60,7 @@ class SrpDpd:
         az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad, azimuth_range_rad)
         self._grid = SrpGrid(array, self.fs_hz, az, el, self.settings)
 
-    def dominance(self, spectra: FloatArray) -> FloatArray:
+    def dominance(self, spectra: ComplexArray) -> FloatArray:
         """Share of the largest eigenvalue in each smoothed spatial covariance.
 
         Parameters

@@ -13,12 +13,13 @@ from tracker.audio.localizers.base import (
     wrap_angle,
 )
 from tracker.audio.localizers.spectra import (
+    ComplexArray,
     SpectralSettings,
     SrpGrid,
     band_mask,
     gcc,
-    pair_cross_spectra,
     onset_weights,
+    pair_cross_spectra,
     phat,
     snr_weights,
     stft,
@@ -61,7 +62,7 @@ class SrpPhat:
         self.onset_weighting = onset_weighting
         self._grid = SrpGrid(array, self.fs_hz, az, el, self.settings)
 
-    def cross_spectra(self, frame: FloatArray) -> FloatArray:
+    def cross_spectra(self, frame: FloatArray) -> ComplexArray:
         """PHAT-weighted pair cross-spectra of one window; shape (n_pairs, n_freq)."""
         spectra = stft(frame, self.settings.nfft)
         weights = snr_weights(spectra)
