@@ -32,42 +32,10 @@ from tracker.errors import ConfigError, DriverFault
 from tracker.plant.model import AxisModel
 from tracker.recording import Recorder
 from tracker.targets import TargetSource, as_target
+from tracker.telemetry import EngineStatus, TelemetrySnapshot, TelemetrySubscription
 from tracker.workbench.data import Measurement
 
 MODES = ("tracking", "manual", "hold", "disabled", "fault")
-
-
-@dataclass(frozen=True, slots=True)
-class TelemetrySnapshot:
-    """One published sample (angles are encoder readings, rad; commands in V)."""
-
-    t_s: float
-    pan_rad: float
-    tilt_rad: float
-    pan_target_rad: float
-    tilt_target_rad: float
-    pan_u_v: float
-    tilt_u_v: float
-    mode: str
-    tracking: bool
-    source: str | None
-    estimate_azimuth_rad: float | None = None
-    estimate_elevation_rad: float | None = None
-
-
-@dataclass(frozen=True, slots=True)
-class EngineStatus:
-    """The engine's state right now."""
-
-    t_s: float
-    pan_rad: float
-    tilt_rad: float
-    pan_target_rad: float
-    tilt_target_rad: float
-    mode: str
-    tracking: bool
-    faults: tuple[str, ...]
-    active_talker: str | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,41 +48,6 @@ class EngineConfig:
     shaping: dict[str, TrajectoryLimits] = field(default_factory=lambda: dict(DEFAULT_LIMITS))
     models: dict[str, AxisModel] | None = None
     enable_on_start: bool = True  # enable the driver when run() starts the first time
-
-
-class TelemetrySubscription:
-    """Async iterator of snapshots; a slow consumer loses the oldest ones. ``close()`` to leave."""
-
-    def __init__(self, engine: Engine, maxsize: int) -> None:
-        self._engine = engine
-        self._queue: asyncio.Queue[TelemetrySnapshot | None] = asyncio.Queue(maxsize=max(1, maxsize))
-        self.dropped = 0
-        self.closed = False
-
-    def _put(self, item: TelemetrySnapshot | None) -> None:
-        if self._queue.full():
-            self._queue.get_nowait()
-            self.dropped += 1
-        self._queue.put_nowait(item)
-
-    def __aiter__(self) -> TelemetrySubscription:
-        return self
-
-    async def __anext__(self) -> TelemetrySnapshot:
-        if self.closed and self._queue.empty():
-            raise StopAsyncIteration
-        item = await self._queue.get()
-        if item is None:
-            self.closed = True
-            raise StopAsyncIteration
-        return item
-
-    def close(self) -> None:
-        """Stop receiving; a pending iteration ends."""
-        if not self.closed:
-            self._engine._subscribers.discard(self)
-            self.closed = True
-            self._put(None)
 
 
 class _Axis:
@@ -183,7 +116,7 @@ class Engine:
 
     def subscribe(self, maxsize: int = 256) -> TelemetrySubscription:
         """A new telemetry subscription (drop-oldest queue of ``maxsize``)."""
-        sub = TelemetrySubscription(self, maxsize)
+        sub = TelemetrySubscription(maxsize, self._subscribers.discard)
         self._subscribers.add(sub)
         return sub
 
@@ -325,7 +258,7 @@ class Engine:
         finally:
             self._running = False
             for sub in list(self._subscribers):
-                sub._put(None)
+                sub.put(None)
 
     def step_chunk(self) -> TelemetrySnapshot:
         """Run one chunk of both axes and publish its snapshot (the loop's body; sync)."""
@@ -356,7 +289,7 @@ class Engine:
         self._t = self._k * self._dt
         snap = self._snapshot()
         for sub in list(self._subscribers):
-            sub._put(snap)
+            sub.put(snap)
         return snap
 
     def _run_per_sample(self, targets: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
@@ -436,3 +369,6 @@ class Engine:
         """The observer's angle (rad) and velocity (rad/s) of ``axis``."""
         cs = self._axis(axis).cs
         return float(cs[S_TH]), float(cs[S_OM])
+
+
+__all__ = ["MODES", "Engine", "EngineConfig", "EngineStatus", "TelemetrySnapshot", "TelemetrySubscription"]
