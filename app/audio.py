@@ -118,6 +118,15 @@ class MeetingSource:
         self.name = name
         self.table = table
         self.note = "ready" if table is not None else "preparing the simulated meeting"
+        self.worker: Any = None  # the subprocess building the meeting, while it runs
+        self.closed = False
+
+    def close(self) -> None:
+        """Stop building the meeting (at shutdown)."""
+        self.closed = True
+        proc = self.worker
+        if proc is not None and proc.poll() is None:
+            proc.terminate()
 
     def target_at(self, t_s: float) -> Target | None:
         """The tracker's target at engine time ``t_s`` (looping), or None before the first shot."""
@@ -160,19 +169,27 @@ def start_meeting_source(
 
         try:
             cmd = [sys.executable, "-m", "app.audio", str(seed), str(duration_s), str(cache)]
-            done = subprocess.run(
-                cmd, capture_output=True, text=True, timeout=900, cwd=Path(__file__).resolve().parent.parent
+            proc = subprocess.Popen(
+                cmd,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+                cwd=Path(__file__).resolve().parent.parent,
             )
-            if done.returncode != 0:
-                raise RuntimeError(
-                    done.stderr.strip().splitlines()[-1] if done.stderr.strip() else "no output"
-                )
+            source.worker = proc
+            _, err = proc.communicate(timeout=900)
+            source.worker = None
+            if proc.returncode != 0:
+                tail = err.strip().splitlines()
+                raise RuntimeError(tail[-1] if tail else f"worker exited with {proc.returncode}")
             tab = TrackTable.load(cache)
             if tab is None:
                 raise RuntimeError(f"the tracked meeting was not written to {cache}")
             source.table, source.note = tab, "ready"
             log.info("simulated meeting ready: %d analysis windows", tab.end_s.size)
         except Exception as exc:  # the console must keep working with manual pointing
+            if source.closed:
+                return
             source.note = f"simulated meeting failed: {type(exc).__name__}: {exc}"
             log.exception("building the simulated meeting failed")
 

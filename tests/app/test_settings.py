@@ -1,0 +1,47 @@
+"""Settings: defaults, then the TOML file, then TRACKER_* variables, then code; bad values named."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from app.settings import load_settings
+from tracker.errors import ConfigError
+
+
+def test_file_then_env_then_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = tmp_path / "console.toml"
+    cfg.write_text('port = 9001\nviewer_port = 9002\nmin_phase_margin_deg = 50\n')
+    s = load_settings(cfg)
+    assert (s.port, s.viewer_port, s.min_phase_margin_deg) == (9001, 9002, 50.0)
+    monkeypatch.setenv("TRACKER_PORT", "9100")
+    assert load_settings(cfg).port == 9100
+    assert load_settings(cfg, port=9200).port == 9200
+    assert load_settings(cfg, port=None).port == 9100  # None means "not given"
+
+
+def test_defaults_run_the_simulated_rig_with_data_in_dot_data() -> None:
+    s = load_settings(None)
+    assert s.data_dir == Path("data") and s.db_path == Path("data/console.sqlite3")
+    assert s.rig_config is None and s.viewer_enabled and s.telemetry_rate_hz >= 50
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [("port = 'eighty'\n", ["port", "config file"]), ("colour = 'red'\n", ["colour"]),
+     ("port = [\n", ["console.toml"]), ("telemetry_rate_hz = 10\n", ["telemetry_rate_hz"])],
+    ids=["bad-type", "unknown-key", "bad-toml", "too-slow"],
+)
+def test_bad_config_is_a_config_error_naming_it(tmp_path: Path, text: str, words: list[str]) -> None:
+    cfg = tmp_path / "console.toml"
+    cfg.write_text(text)
+    with pytest.raises(ConfigError) as exc:
+        load_settings(cfg)
+    for w in words:
+        assert w in str(exc.value)
+
+
+def test_missing_config_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="no such file"):
+        load_settings(tmp_path / "nope.toml")

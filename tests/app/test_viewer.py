@@ -1,0 +1,74 @@
+"""The viser 3D view: frames follow telemetry, and the share-URL tunnel cannot be opened."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from app.viewer import RigViewer, angle_about_y, angle_about_z, load_mics, quat_direction, quat_y, quat_z
+
+from .conftest import free_port
+
+
+@pytest.fixture(scope="module")
+def viewer() -> Iterator[RigViewer]:
+    v = RigViewer("127.0.0.1", free_port(), load_mics(None))
+    yield v
+    v.server.stop()
+
+
+def rotate(q: tuple[float, float, float, float], v: np.ndarray) -> np.ndarray:
+    w, x, y, z = q
+    u = np.array([x, y, z])
+    return v + 2 * np.cross(u, np.cross(u, v) + w * v)
+
+
+@settings(max_examples=50, deadline=None)
+@given(az=st.floats(-math.pi, math.pi), el=st.floats(-1.5, 1.5))
+def test_direction_quaternion_points_x_at_azimuth_and_elevation(az: float, el: float) -> None:
+    expected = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    np.testing.assert_allclose(rotate(quat_direction(az, el), np.array([1.0, 0, 0])), expected, atol=1e-12)
+
+
+@given(a=st.floats(-3.0, 3.0))
+def test_axis_angles_read_back(a: float) -> None:
+    assert angle_about_z(quat_z(a)) == pytest.approx(a, abs=1e-12)
+    assert angle_about_y(quat_y(a)) == pytest.approx(a, abs=1e-12)
+
+
+def test_scene_follows_a_frame(viewer: RigViewer) -> None:
+    viewer.show({"pan_deg": -33.0, "tilt_deg": 12.5, "pan_target_deg": -30.0, "tilt_target_deg": 10.0,
+                 "estimate_azimuth_deg": None, "estimate_elevation_deg": None})
+    s = viewer.scene_state()
+    assert (s["pan_deg"], s["tilt_deg"]) == (pytest.approx(-33.0), pytest.approx(12.5))
+    assert s["estimate_visible"] is False
+    viewer.show({"pan_deg": 0.0, "tilt_deg": 0.0, "estimate_azimuth_deg": 40.0, "estimate_elevation_deg": None})
+    assert viewer.scene_state()["estimate_visible"] is True
+
+
+def test_share_url_is_disabled_for_real(viewer: RigViewer) -> None:
+    from viser import _messages
+
+    assert viewer.share_enabled is False
+    assert viewer.scene_state()["share_url_enabled"] is False
+    # a client asking for a share URL reaches no handler, so no tunnel is ever started
+    ws = viewer.server._websock_server
+    assert _messages.ShareUrlRequest not in ws._incoming_handlers
+    asyncio.run(ws._handle_incoming_message(0, _messages.ShareUrlRequest()))  # type: ignore[arg-type]
+    assert viewer.server._share_tunnel is None
+    # and the server-side call refuses too
+    assert viewer.server.request_share_url() is None
+    assert viewer.server._share_tunnel is None
+
+
+def test_binds_loopback_by_default() -> None:
+    from app.settings import Settings
+
+    assert Settings().viewer_host == "127.0.0.1"
+    assert Settings().host == "127.0.0.1"
