@@ -199,6 +199,15 @@ class KStepJudge:
         fit = 100.0 * (1.0 - float(np.linalg.norm(end)) / self.end_norm)
         return KStepScore(np.sum(e[:, self.k_settle + 1 :] ** 2, axis=1), end, fit)
 
+    def half_gains(self, base: KStepScore, cand: KStepScore) -> tuple[float, float]:
+        """Error reduction on each half of the run (alternating 1 s blocks)."""
+        half = ((self.starts * self.dt) // 1.0).astype(np.int64) % 2
+        out = []
+        for h in (0, 1):
+            b = float(base.window_sse[half == h].sum())
+            out.append(1.0 - float(cand.window_sse[half == h].sum()) / b if b > 0 else 0.0)
+        return out[0], out[1]
+
     def compare(self, base: KStepScore, cand: KStepScore) -> Comparison:
         """Paired comparison over blocks of windows (blocks ≥ 4 windows long).
 
