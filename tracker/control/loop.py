@@ -241,11 +241,11 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
             # The observer's torque estimate d̂ is −(true friction) while moving; what the
             # feedforward leaves over, r = d̂/K + u_fric, says how wrong the Coulomb value is.
             # (Inertia and gravity errors average out over a motion; friction's sign does not.)
-            r = dist * cp[C_INVK] + u_fric
+            resid = dist * cp[C_INVK] + u_fric
             if s > 0.0:
-                cs[S_FCP] = min(max(cs[S_FCP] - cp[C_ADAPT] * dt * r, 0.0), ADAPT_MAX_FACTOR * cp[C_FCP])
+                cs[S_FCP] = min(max(cs[S_FCP] - cp[C_ADAPT] * dt * resid, 0.0), ADAPT_MAX_FACTOR * cp[C_FCP])
             else:
-                cs[S_FCN] = min(max(cs[S_FCN] + cp[C_ADAPT] * dt * r, 0.0), ADAPT_MAX_FACTOR * cp[C_FCN])
+                cs[S_FCN] = min(max(cs[S_FCN] + cp[C_ADAPT] * dt * resid, 0.0), ADAPT_MAX_FACTOR * cp[C_FCN])
         u_ff = cp[C_FF] * (cp[C_FJ] * ref_a + cp[C_FB] * ref_v) + u_fric
         u_i = cp[C_KI] * cs[S_INT]
         # Disturbance compensation: cancel what the observer's torque estimate says the
@@ -256,9 +256,8 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
         # Anti-windup: integrate only while the command is not pushed further into saturation.
         if not ((u > umax and e > 0.0) or (u < -umax and e < 0.0)):
             cs[S_INT] += e * dt
-            if cp[C_KI] > 0.0:
-                cap = cp[C_ILIM] / cp[C_KI]
-                cs[S_INT] = _clip(cs[S_INT], cap)
+            if cp[C_KI] != 0.0:
+                cs[S_INT] = _clip(cs[S_INT], cp[C_ILIM] / abs(cp[C_KI]))
     # 4. the last line, on its own observer (no gain can blind it), then the amplifier's range.
     g_innov = y_rad - cs[S_GX]
     g_th = cs[S_GX] + cp[C_GL] * g_innov
