@@ -144,6 +144,14 @@ def test_tracking_toggle_and_reenabling_ends_the_override(rig: Rig) -> None:
 
 def test_jog_moves_then_stops_by_itself(rig: Rig) -> None:
     release_all(rig)
+    # a jog starts from where the axis is: bring it to rest at 0° first
+    assert (
+        rig.client.put(
+            f"{API}/pointing", headers=rig.h("operator"), json={"pan_deg": 0, "tilt_deg": 0}
+        ).status_code
+        == 200
+    )
+    assert poll(lambda: abs(status(rig)["pan_deg"]) < 0.05, 6.0)
     start = status(rig)["pan_target_deg"]
     r = rig.client.put(f"{API}/jog/pan", headers=rig.h("operator"), json={"rate_deg_s": 20.0})
     assert r.status_code == 200 and r.json()["auto_stop_s"] > 0

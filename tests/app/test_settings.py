@@ -12,7 +12,7 @@ from tracker.errors import ConfigError
 
 def test_file_then_env_then_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     cfg = tmp_path / "console.toml"
-    cfg.write_text('port = 9001\nviewer_port = 9002\nmin_phase_margin_deg = 50\n')
+    cfg.write_text("port = 9001\nviewer_port = 9002\nmin_phase_margin_deg = 50\n")
     s = load_settings(cfg)
     assert (s.port, s.viewer_port, s.min_phase_margin_deg) == (9001, 9002, 50.0)
     monkeypatch.setenv("TRACKER_PORT", "9100")
@@ -29,8 +29,12 @@ def test_defaults_run_the_simulated_rig_with_data_in_dot_data() -> None:
 
 @pytest.mark.parametrize(
     ("text", "words"),
-    [("port = 'eighty'\n", ["port", "config file"]), ("colour = 'red'\n", ["colour"]),
-     ("port = [\n", ["console.toml"]), ("telemetry_rate_hz = 10\n", ["telemetry_rate_hz"])],
+    [
+        ("port = 'eighty'\n", ["port", "config file"]),
+        ("colour = 'red'\n", ["colour"]),
+        ("port = [\n", ["console.toml"]),
+        ("telemetry_rate_hz = 10\n", ["telemetry_rate_hz"]),
+    ],
     ids=["bad-type", "unknown-key", "bad-toml", "too-slow"],
 )
 def test_bad_config_is_a_config_error_naming_it(tmp_path: Path, text: str, words: list[str]) -> None:

@@ -43,12 +43,22 @@ def test_axis_angles_read_back(a: float) -> None:
 
 
 def test_scene_follows_a_frame(viewer: RigViewer) -> None:
-    viewer.show({"pan_deg": -33.0, "tilt_deg": 12.5, "pan_target_deg": -30.0, "tilt_target_deg": 10.0,
-                 "estimate_azimuth_deg": None, "estimate_elevation_deg": None})
+    viewer.show(
+        {
+            "pan_deg": -33.0,
+            "tilt_deg": 12.5,
+            "pan_target_deg": -30.0,
+            "tilt_target_deg": 10.0,
+            "estimate_azimuth_deg": None,
+            "estimate_elevation_deg": None,
+        }
+    )
     s = viewer.scene_state()
     assert (s["pan_deg"], s["tilt_deg"]) == (pytest.approx(-33.0), pytest.approx(12.5))
     assert s["estimate_visible"] is False
-    viewer.show({"pan_deg": 0.0, "tilt_deg": 0.0, "estimate_azimuth_deg": 40.0, "estimate_elevation_deg": None})
+    viewer.show(
+        {"pan_deg": 0.0, "tilt_deg": 0.0, "estimate_azimuth_deg": 40.0, "estimate_elevation_deg": None}
+    )
     assert viewer.scene_state()["estimate_visible"] is True
 
 
