@@ -22,7 +22,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tracker.control.closed_loop import N_REC, R_U, R_Y
-from tracker.control.design import DEFAULT_CONTROLLER, DesignReport, check_gains, design_controller
+from tracker.control.design import (
+    DEFAULT_CONTROLLER,
+    ControllerDesign,
+    DesignReport,
+    check_gains,
+    design_controller,
+)
 from tracker.control.gains import ControllerGains
 from tracker.control.limits import SoftLimits
 from tracker.control.loop import S_INIT, S_OM, S_REF, S_TH, controller_step, new_state, pack_controller
@@ -182,6 +188,24 @@ class Engine:
             raise ConfigError(f"{axis} gains refused: {report.describe()}")
         ax.set_gains(gains)
         return report
+
+    def model(self, axis: str) -> AxisModel:
+        """The model the controller of ``axis`` is designed on."""
+        return self._axis(axis).model
+
+    def set_model(self, axis: str, model: AxisModel) -> ControllerDesign:
+        """Redesign ``axis``'s controller on ``model`` (e.g. one the workbench fitted) and use it.
+
+        The limits, shaping and controller name stay; refused (ConfigError with the margins)
+        like :meth:`set_gains` when the new design misses the phase-margin floor.
+        """
+        ax = self._axis(axis)
+        design = design_controller(model, self.config.controller, axis=axis)
+        if not design.report.ok or design.report.phase_margin_deg < self.config.min_phase_margin_deg:
+            raise ConfigError(f"{axis} redesign refused: {design.report.describe()}")
+        ax.model = model
+        ax.set_gains(design.gains)
+        return design
 
     def start_recording(self) -> None:
         """Start recording t, u, theta of each axis."""

@@ -226,3 +226,16 @@ def test_a_talker_source_reports_who_and_where_it_heard() -> None:
     e.driver.enable()
     run(e, 0.6)
     assert e.status().mode == "tracking" and e.status().pan_rad == pytest.approx(0.2, abs=1e-3)
+
+
+def test_redesign_on_a_fitted_model_changes_the_gains_and_keeps_margins() -> None:
+    from tracker.plant.model import AxisModel
+
+    e = Engine(SimDriver())
+    before = e.gains("tilt")
+    heavier = AxisModel.for_axis("tilt").with_params({"inertia.J": 0.003})
+    design = e.set_model("tilt", heavier)
+    assert e.model("tilt") is heavier and e.gains("tilt") == design.gains
+    assert design.report.phase_margin_deg >= 45.0
+    # Twice the inertia, same bandwidth: about twice the stiffness.
+    assert e.gains("tilt").kp_v_per_rad == pytest.approx(2.05 * before.kp_v_per_rad, rel=0.05)  # type: ignore[union-attr]
