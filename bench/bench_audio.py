@@ -8,6 +8,7 @@ is more than 20° off, for a talker who stands, then walks.
 
     .venv/bin/python bench/bench_audio.py            # target condition + a reduced sweep (~3 min)
     .venv/bin/python bench/bench_audio.py --full     # RT60 0.2-0.8 s x SNR 0-30 dB x placement
+    .venv/bin/python bench/bench_audio.py --espeak   # espeak-ng sentences instead of the generator
 
 Rooms: 6 x 5 x 3 m shoebox, pyroomacoustics image sources to order 10 plus a diffuse tail of
 the requested RT60 (tracker.audio.room), independent white noise at the given SNR, the 4-mic
@@ -29,7 +30,7 @@ from tracker.audio import room
 from tracker.audio.array import MicArray, load_array
 from tracker.audio.localizers import make_localizer
 from tracker.audio.pipeline import Pipeline, WindowSettings
-from tracker.audio.speech import synthetic_speech
+from tracker.audio.speech import espeak_available, synthetic_speech, talker_speech
 
 FS_HZ = 16000
 ARRAY_FILE = Path(__file__).resolve().parents[1] / "examples" / "arrays" / "square4_65mm.json"
@@ -83,7 +84,8 @@ def random_talker_position(placement: room.Placement, settings: room.RoomSetting
 
 
 def run_condition(cond: Condition, array: MicArray, n_trials: int, seed: int,
-                  pra_band: tuple[float, float]) -> dict[str, tuple[list[float], float, float]]:
+                  pra_band: tuple[float, float], espeak: bool = False
+                  ) -> dict[str, tuple[list[float], float, float]]:
     """Errors and compute time per method: name -> (errors_deg, seconds, audio_seconds)."""
     settings = room.RoomSettings(rt60_s=cond.rt60_s, snr_db=cond.snr_db, fs_hz=FS_HZ)
     wall = cond.placement == "wall"
@@ -98,7 +100,7 @@ def run_condition(cond: Condition, array: MicArray, n_trials: int, seed: int,
     results = {name: ([], 0.0, 0.0) for name in methods}
     rng = np.random.default_rng(seed)
     for trial in range(n_trials):
-        speech = synthetic_speech(4.0, FS_HZ, seed=seed * 1000 + trial)
+        speech = talker_speech(4.0, FS_HZ, seed * 1000 + trial, use_espeak=espeak)
         position = random_talker_position(placement, settings, rng, wall)
         recording = room.simulate(settings, array, placement,
                                   [room.static_talker(speech.samples, speech.active, position)],
@@ -190,7 +192,11 @@ def main() -> None:
     parser.add_argument("--pra-band", type=float, nargs=2, default=(300.0, 3500.0),
                         help="frequency range given to pyroomacoustics (Hz)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--espeak", action="store_true",
+                        help="speech from espeak-ng (must be installed) instead of the generator")
     args = parser.parse_args()
+    if args.espeak and not espeak_available():
+        parser.error("--espeak needs espeak-ng on PATH (apt-get install espeak-ng)")
     array = load_array(ARRAY_FILE)
     conditions = [(Condition(0.4, 10.0, "wall"), args.trials)]
     if args.full:
@@ -202,14 +208,16 @@ def main() -> None:
                        for r, s, p in ((0.2, 30.0, "centre"), (0.4, 10.0, "centre"),
                                        (0.8, 10.0, "wall"), (0.4, 0.0, "wall"),
                                        (0.8, 0.0, "centre"))]
-    print(f"array {ARRAY_FILE.name} (4 mics), fs {FS_HZ} Hz, 1 s windows; pyroomacoustics "
+    voice = "espeak-ng" if args.espeak else "synthetic voiced speech"
+    print(f"{voice}; array {ARRAY_FILE.name} (4 mics), fs {FS_HZ} Hz, 1 s windows; pyroomacoustics "
           f"{pra.__version__} band {args.pra_band[0]:.0f}-{args.pra_band[1]:.0f} Hz")
     header = f"{'condition':34s} {'method':14s} {'windows':>7s} {'median°':>8s} {'p90°':>7s} {'ms/s':>7s}"
     print(header)
     print("-" * len(header))
     wall_clock = time.perf_counter()
     for index, (cond, n_trials) in enumerate(conditions):
-        results = run_condition(cond, array, n_trials, args.seed + index, tuple(args.pra_band))
+        results = run_condition(cond, array, n_trials, args.seed + index, tuple(args.pra_band),
+                                args.espeak)
         for name, (errors, seconds, audio_s) in results.items():
             errors_arr = np.array(errors)
             print(f"{cond.label:34s} {name:14s} {errors_arr.size:7d} {np.median(errors_arr):8.2f} "

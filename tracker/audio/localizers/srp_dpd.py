@@ -19,6 +19,7 @@ from tracker.audio.localizers.spectra import (
     SrpGrid,
     band_mask,
     gcc,
+    onset_weights,
     stft,
 )
 
@@ -33,7 +34,8 @@ class SrpDpd:
     power the bin is dominated by one plane wave, which early in a speech onset is the direct
     path rather than a reflection. Only the ``keep_fraction`` most dominant bins (among those
     with energy above the window's median) vote, each with PHAT weight, so wall reflections and
-    diffuse noise lose their say.
+    diffuse noise lose their say. Votes are further weighted by how much the bin's power is
+    rising (``onset_power``; see :func:`~tracker.audio.localizers.spectra.onset_weights`).
     """
 
     name = "srp_dpd"
@@ -49,6 +51,7 @@ class SrpDpd:
         azimuth_step_rad: float = np.deg2rad(2.0),
         elevation_step_rad: float = np.deg2rad(5.0),
         azimuth_range_rad: tuple[float, float] | None = None,
+        onset_power: float = 1.0,
     ) -> None:
         self.array = array
         self.fs_hz = int(fs_hz)
@@ -56,6 +59,7 @@ class SrpDpd:
         self.keep_fraction = keep_fraction
         self.smooth_frames = smooth_frames
         self.smooth_bins = smooth_bins
+        self.onset_power = onset_power
         self._mask = band_mask(self.fs_hz, self.settings)
         az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad, azimuth_range_rad)
         self._grid = SrpGrid(array, self.fs_hz, az, el, self.settings)
@@ -87,6 +91,8 @@ class SrpDpd:
         loud = power >= np.median(power)
         threshold = np.quantile(dominance[loud], 1.0 - self.keep_fraction) if loud.any() else 1.0
         weights = (loud & (dominance >= threshold)).astype(float)
+        if self.onset_power > 0:
+            weights = weights * onset_weights(spectra, self.onset_power)
         i, j = np.array(self.array.pairs).T
         cross_tf = spectra[i] * np.conj(spectra[j])
         cross_tf = cross_tf / (np.abs(cross_tf) + _EPS) * weights[None]
