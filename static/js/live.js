@@ -24,6 +24,9 @@ export function init(s) {
   $("unzoom").addEventListener("click", () => { zoomed = false; redraw(true); });
   for (const el of [panEl, tiltEl]) el.addEventListener("mouseup", () => { zoomed = true; });
   $("tracking-toggle").addEventListener("change", onTracking);
+  $("takeover").addEventListener("click", async () => {
+    try { await post("/control?force=true"); toast("You hold manual control"); refreshStatus(); } catch (e) { toast(e.message, true); }
+  });
   $("release").addEventListener("click", async () => {
     try { await del("/pointing"); toast("Manual control released"); } catch (e) { toast(e.message, true); }
   });
@@ -35,8 +38,12 @@ export function init(s) {
   refreshStatus();
   setInterval(refreshStatus, 500);
   setInterval(() => { if (!paused) redraw(false); }, 100);
-  let counted = 0;
-  setInterval(() => { $("conn-rate").textContent = `${frames - counted} Hz`; counted = frames; }, 1000);
+  let counted = 0, since = performance.now();
+  setInterval(() => {
+    const now = performance.now();
+    $("conn-rate").textContent = `${Math.round((1000 * (frames - counted)) / (now - since))} Hz`;
+    counted = frames; since = now;
+  }, 1000);
   loadPresets();
   setTimeout(setupViewer, 800);  // let the console draw first; the 3D view's bundle is heavy
 }
@@ -99,6 +106,8 @@ async function refreshStatus() {
     $("faults").textContent = s.faults.length ? s.faults.join(", ") : "none";
     $("faults").style.color = s.faults.length ? "var(--bad)" : "";
     $("holder").textContent = s.control_holder ? `${s.control_holder.name} (${s.control_holder.held_s} s)` : "nobody";
+    const other = s.control_holder && s.control_holder.name !== session.name;
+    $("takeover").hidden = !(other && session.can("engineer"));
     const t = $("tracking-toggle");
     if (document.activeElement !== t) t.checked = s.tracking;
     document.body.dataset.mode = s.mode;

@@ -84,14 +84,17 @@ async function loadVersions() {
   versions = await get(`/workbench/measurements/${selected}/versions`);
   const x = versions.map((_, i) => i + 1);
   setData($("plot-versions"), [x, versions.map((v) => v.fit.rms_deg), versions.map((v) => v.fit.fit_percent_increment)]);
-  $("version-list").innerHTML = versions.map((v, i) => `<li><span><b>v${i + 1}</b> ${esc(v.label)}<br>
+  $("version-list").innerHTML = versions.map((v, i) => `<li data-vid="${v.id}" title="show this version against the measurement"><span><b>v${i + 1}</b> ${esc(v.label)}<br>
     <span class="meta">${v.model.effects.length ? esc(v.model.effects.join(", ")) : "base model"}</span></span>
     <span class="meta">${fmt(v.fit.rms_deg, 4)}° · ${fmt(v.fit.fit_percent, 2)} %</span></li>`).join("");
+  for (const li of document.querySelectorAll("#version-list li")) li.onclick = () => compare(+li.dataset.vid);
 }
 
-async function compare() {
-  const m = await post(`/workbench/measurements/${selected}/compare`, {});
-  $("wb-title").textContent = `Measurement #${selected} vs ${m.version_label} (v${versions.length})`;
+async function compare(versionId) {
+  const m = await post(`/workbench/measurements/${selected}/compare`, versionId ? { version_id: versionId } : {});
+  const n = versions.findIndex((v) => v.id === m.version_id) + 1;
+  $("wb-title").textContent = `Measurement #${selected} vs ${m.version_label} (v${n})`;
+  for (const li of document.querySelectorAll("#version-list li")) li.classList.toggle("selected", +li.dataset.vid === m.version_id);
   const s = m.series;
   setData($("plot-overlay"), [s.t_s, s.measured_deg, s.model_deg]);
   setData($("plot-residual"), [s.t_s, s.residual_deg]);
