@@ -11,8 +11,13 @@ Two lines of defence:
    the line it forbids outward commands, and past the line it pushes back at full command.
 
 The guard assumes that unmodelled torques (gravity, offset, ripple...) and a lower amplifier
-clip leave at least ``BRAKE_FRACTION`` of the nominal braking torque; a rig that breaks that
-assumption is outside what any controller can stop.
+clip leave at least ``BRAKE_FRACTION`` of the nominal braking torque, that the command delay
+is within ``GUARD_LATENCY_S`` (less one sample), and that the transmission is stiff: the
+encoder is on the motor, so backlash within the margin (tested to 0.23°) is covered but a soft belt
+(the ``compliance`` effect) lets the load swing past what the motor side shows — a 12 Hz tilt
+belt deflects ~6° under 0.1 N·m. For such a rig, raise ``guard_margin_rad`` to the fitted
+belt's deflection at full torque. A rig outside these assumptions is outside what a
+motor-side guard can stop.
 """
 
 from __future__ import annotations

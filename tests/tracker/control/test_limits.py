@@ -15,8 +15,9 @@ from tracker.plant.model import AxisModel
 
 DT = 1e-3
 
-# Hidden effects within the guard's stated assumption: disturbance torques and a lower amplifier
-# clip leave at least half the nominal braking torque, command delay ≤ 3 ms (limits.py).
+# Hidden effects within the guard's stated assumptions (limits.py): disturbance torques and a
+# lower amplifier clip leave at least half the nominal braking torque, command delay ≤ 3 ms,
+# a stiff transmission.
 EFFECTS = {
     "gravity": st.fixed_dictionaries(
         {"gravity.torque": st.floats(0.0, 0.12), "gravity.phase": st.floats(-3.1, 3.1)}
@@ -27,7 +28,12 @@ EFFECTS = {
     "delay": st.fixed_dictionaries({"delay.seconds": st.floats(0.0, 0.003)}),
     "saturation": st.fixed_dictionaries({"saturation.limit": st.floats(7.0, 10.0)}),
     "ripple": st.fixed_dictionaries({"ripple.amplitude": st.floats(0.0, 0.03)}),
+    # Up to 0.23° of dead band between the encoder's motor and the load (within the margin).
+    "backlash": st.fixed_dictionaries({"backlash.width": st.floats(0.0, 0.004)}),
 }
+# Not drawn: belt compliance. The encoder is on the motor; a soft belt lets the load swing
+# (a 12 Hz tilt belt deflects ~6° under 0.1 N·m) beyond anything a motor-side guard can see.
+# limits.py states this; a fitted compliance means a larger guard margin.
 
 magnitude = st.floats(-3.0, 5.0).map(lambda e: 10.0**e)
 signed = st.tuples(magnitude, st.sampled_from([1.0, 1.0, 1.0, -1.0])).map(lambda p: p[0] * p[1])
