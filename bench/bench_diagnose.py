@@ -22,8 +22,13 @@ from tracker.workbench.diagnose import diagnose
 from tracker.workbench.experiments import HIDDEN_RANGES, generate_measurement, random_hidden_model
 
 EFFECTS = tuple(HIDDEN_RANGES)
-PAIRS = (("gravity", "delay"), ("offset", "ripple"), ("saturation", "stiction"), ("viscous_asymmetry", "compliance"),
-         ("backlash", "gravity"))
+PAIRS = (
+    ("gravity", "delay"),
+    ("offset", "ripple"),
+    ("saturation", "stiction"),
+    ("viscous_asymmetry", "compliance"),
+    ("backlash", "gravity"),
+)
 ACCEPT = {"coulomb_asymmetry": ("coulomb_asymmetry", "offset")}  # equivalent on a rigid axis
 
 
@@ -35,15 +40,22 @@ def param_error(name: str, got: float, want: float) -> float:
     return 100.0 * abs(got - want) / abs(want)
 
 
-def effect_errors(effect: str, verdict: str | None, cand_model: AxisModel | None, true: AxisModel) -> dict[str, float]:
+def effect_errors(
+    effect: str, verdict: str | None, cand_model: AxisModel | None, true: AxisModel
+) -> dict[str, float]:
     if cand_model is None:
         return {}
     p = cand_model.params
     if effect == "coulomb_asymmetry" and verdict == "offset":
         o = p["offset.torque"]
-        return {"coulomb_asymmetry.negative": param_error("x", p["coulomb.torque"] - o, true.params[
-            "coulomb_asymmetry.negative"])}
-    return {k: param_error(k, p[k], v) for k, v in true.params.items() if k.split(".")[0] == effect and k in p}
+        return {
+            "coulomb_asymmetry.negative": param_error(
+                "x", p["coulomb.torque"] - o, true.params["coulomb_asymmetry.negative"]
+            )
+        }
+    return {
+        k: param_error(k, p[k], v) for k, v in true.params.items() if k.split(".")[0] == effect and k in p
+    }
 
 
 def speed(duration_s: float) -> None:
@@ -56,8 +68,10 @@ def speed(duration_s: float) -> None:
             t0 = time.perf_counter()
             diagnose(meas, AxisModel.for_axis("pan"))
             times.append(time.perf_counter() - t0)
-    print(f"diagnose, {duration_s:g} s at 1 kHz, all {len(EFFECTS)} candidates + quantization: "
-          f"median {statistics.median(times):.2f} s, max {max(times):.2f} s over {len(times)} runs")
+    print(
+        f"diagnose, {duration_s:g} s at 1 kHz, all {len(EFFECTS)} candidates + quantization: "
+        f"median {statistics.median(times):.2f} s, max {max(times):.2f} s over {len(times)} runs"
+    )
 
 
 def scorecard(seeds: int, duration_s: float) -> None:
@@ -65,7 +79,10 @@ def scorecard(seeds: int, duration_s: float) -> None:
     print(f"{'effect':<18} {'verdict':>8} {'param err % (median / worst)':>32} {'fit % before → after':>24}")
     clean_ok = 0
     for s in range(seeds):
-        d = diagnose(generate_measurement(AxisModel.for_axis("pan"), duration_s, seed=900 + s), AxisModel.for_axis("pan"))
+        d = diagnose(
+            generate_measurement(AxisModel.for_axis("pan"), duration_s, seed=900 + s),
+            AxisModel.for_axis("pan"),
+        )
         clean_ok += d.verdict is None
     print(f"{'(clean)':<18} {clean_ok:>3}/{seeds} no verdict")
     for effect in EFFECTS:
@@ -85,7 +102,8 @@ def scorecard(seeds: int, duration_s: float) -> None:
                 after.append(cand.fit_percent)
         names = sorted({k for e in errs for k in e})
         txt = ", ".join(
-            f"{n.split('.')[1]} {statistics.median(e[n] for e in errs):.1f}/{max(e[n] for e in errs):.1f}" for n in names
+            f"{n.split('.')[1]} {statistics.median(e[n] for e in errs):.1f}/{max(e[n] for e in errs):.1f}"
+            for n in names
         )
         fit = f"{statistics.median(before):.3f} → {statistics.median(after):.3f}" if before else "-"
         miss = f"  (missed: {', '.join(wrong)})" if wrong else ""
@@ -105,17 +123,24 @@ def scorecard(seeds: int, duration_s: float) -> None:
                 found.append(d.verdict)
                 model = d.candidate(d.verdict).model or model
             equiv = {ACCEPT.get(e, (e,))[-1] if e in ACCEPT else e for e in pair}
-            got = {("offset" if f in ("offset", "coulomb_asymmetry") and "coulomb_asymmetry" in pair else f) for f in found}
+            got = {
+                ("offset" if f in ("offset", "coulomb_asymmetry") and "coulomb_asymmetry" in pair else f)
+                for f in found
+            }
             hit = got == equiv and len(found) == 2
             hits += hit
-            print(f"  {'+'.join(pair):<30} seed {s}: found {found or '-'}; fit % {' → '.join(f'{f:.3f}' for f in fits)}"
-                  f"{'' if hit else '  MISS'}")
+            print(
+                f"  {'+'.join(pair):<30} seed {s}: found {found or '-'}; "
+                f"fit % {' → '.join(f'{f:.3f}' for f in fits)}"
+                f"{'' if hit else '  MISS'}"
+            )
         print(f"  {'+'.join(pair):<30} {hits}/{seeds} both found")
 
 
 def emps() -> None:
     try:
         from tracker.workbench.emps import DEFAULT_DATA_DIR, emps_model, load_emps
+
         meas, _ = load_emps(DEFAULT_DATA_DIR / "DATA_EMPS.mat")
     except Exception as exc:  # noqa: BLE001 - the data is optional here
         print(f"\nEMPS: skipped ({exc})")
@@ -125,15 +150,20 @@ def emps() -> None:
     for _ in range(3):
         t0 = time.perf_counter()
         d = diagnose(meas, model)
-        top = [(c.effect, round(c.screen_gain, 2), round(c.kstep_gain, 2)) for c in d.candidates if c.significant]
-        print(f"  {'+'.join(model.effects) or 'base'}: verdict {d.verdict} ({time.perf_counter() - t0:.2f} s); "
-              f"significant (effect, held-out torque gain, k-step gain): {top}")
+        top = [
+            (c.effect, round(c.screen_gain, 2), round(c.kstep_gain, 2)) for c in d.candidates if c.significant
+        ]
+        print(
+            f"  {'+'.join(model.effects) or 'base'}: verdict {d.verdict} ({time.perf_counter() - t0:.2f} s); "
+            f"significant (effect, held-out torque gain, k-step gain): {top}"
+        )
         if d.verdict is None:
             break
         c = d.candidate(d.verdict)
         print(f"    {c.evidence}")
         model = c.model or model
-        print(f"    → {', '.join(f'{k} = {v:.4g}' for k, v in model.params.items() if k != 'inertia.motor_fraction')}")
+        shown = {k: v for k, v in model.params.items() if k != "inertia.motor_fraction"}
+        print("    → " + ", ".join(f"{k} = {v:.4g}" for k, v in shown.items()))
 
 
 def main() -> None:

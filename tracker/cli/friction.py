@@ -44,17 +44,28 @@ def _rig(args: argparse.Namespace) -> SimDriver:
 
 def format_result(res: FrictionResult) -> str:
     """The identification as a person reads it."""
-    lines = [f"friction identification, {res.axis} axis (K = {res.gain_nm_per_v:.5g} N·m/V, "
-             f"{len(res.points)} runs, {res.simulated_s:.1f} s of rig time)", ""]
-    lines.append(f"{'direction':<10} {'viscous N·m·s/rad':>20} {'Coulomb N·m':>14} {'break-away N·m':>15} {'runs':>5}")
-    for name, line, brk in (("positive", res.positive, res.breakaway_positive_nm),
-                            ("negative", res.negative, res.breakaway_negative_nm)):
-        lines.append(f"{name:<10} {line.viscous_nm_s_per_rad:12.4g} ± {line.viscous_se:<7.2g}"
-                     f"{line.coulomb_nm:8.4g} ± {line.coulomb_se:<5.2g}{brk:13.4g} {line.points:5d}")
+    lines = [
+        f"friction identification, {res.axis} axis (K = {res.gain_nm_per_v:.5g} N·m/V, "
+        f"{len(res.points)} runs, {res.simulated_s:.1f} s of rig time)",
+        "",
+    ]
+    lines.append(
+        f"{'direction':<10} {'viscous N·m·s/rad':>20} {'Coulomb N·m':>14} {'break-away N·m':>15} {'runs':>5}"
+    )
+    for name, line, brk in (
+        ("positive", res.positive, res.breakaway_positive_nm),
+        ("negative", res.negative, res.breakaway_negative_nm),
+    ):
+        lines.append(
+            f"{name:<10} {line.viscous_nm_s_per_rad:12.4g} ± {line.viscous_se:<7.2g}"
+            f"{line.coulomb_nm:8.4g} ± {line.coulomb_se:<5.2g}{brk:13.4g} {line.points:5d}"
+        )
     ep, en = res.stiction_excess_nm()
     if res.shows_stiction():
-        lines.append(f"stiction: break-away needs {1e3 * ep:.1f} / {1e3 * en:.1f} mN·m more than Coulomb "
-                     "(positive / negative): add the stiction effect")
+        lines.append(
+            f"stiction: break-away needs {1e3 * ep:.1f} / {1e3 * en:.1f} mN·m more than Coulomb "
+            "(positive / negative): add the stiction effect"
+        )
     else:
         lines.append(f"no stiction: break-away is within {1e3 * max(abs(ep), abs(en)):.1f} mN·m of Coulomb")
     lines += ["", "torque vs velocity (runs that reached a steady measurement):"]
@@ -69,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     driver = _rig(args)
     res = run_friction_id(driver, args.axis, voltages_per_direction=args.voltages)
     if args.json:
+
         def clean(v: object) -> object:
             if isinstance(v, float) and not math.isfinite(v):
                 return None
@@ -87,13 +99,21 @@ def run(args: argparse.Namespace) -> int:
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add ``tracker friction-id``."""
-    p = subparsers.add_parser("friction-id", help="identify viscous and Coulomb friction per direction (seed §3.1)")
+    p = subparsers.add_parser(
+        "friction-id", help="identify viscous and Coulomb friction per direction (seed §3.1)"
+    )
     p.add_argument("--axis", required=True, choices=("pan", "tilt"))
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--hidden-effects", metavar="RIG.json", default=None, help="simulated rig config with hidden effects")
-    p.add_argument("--effects", default="", help="hidden effects of the simulated rig on this axis, comma-separated")
+    p.add_argument(
+        "--hidden-effects", metavar="RIG.json", default=None, help="simulated rig config with hidden effects"
+    )
+    p.add_argument(
+        "--effects", default="", help="hidden effects of the simulated rig on this axis, comma-separated"
+    )
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a hidden effect's parameter")
-    p.add_argument("--voltages", type=int, default=10, help="constant-voltage runs per direction (default 10)")
+    p.add_argument(
+        "--voltages", type=int, default=10, help="constant-voltage runs per direction (default 10)"
+    )
     p.set_defaults(func=run)
 
 

@@ -38,15 +38,23 @@ RIPPLE_MAX_CYCLES = 500
 MIN_BACKLASH_COUNTS = 4
 
 
-def _best(design: TorqueDesign, structures: list[Structure], n_eff: float) -> tuple[Structure, Regression, list[float]]:
+def _best(
+    design: TorqueDesign, structures: list[Structure], n_eff: float
+) -> tuple[Structure, Regression, list[float]]:
     regs = [design.fit(s, n_eff, cv=False) for s in structures]
     sses = [r.sse for r in regs]
     i = int(np.argmin(sses))
     return structures[i], regs[i], sses
 
 
-def _refine_1d(design: TorqueDesign, make: Callable[[float], Structure], grid: FloatArray, n_eff: float,
-               log: bool = True, steps: int = 6) -> tuple[Structure, Regression, float]:
+def _refine_1d(
+    design: TorqueDesign,
+    make: Callable[[float], Structure],
+    grid: FloatArray,
+    n_eff: float,
+    log: bool = True,
+    steps: int = 6,
+) -> tuple[Structure, Regression, float]:
     """Grid search then golden-section refinement of one nonlinear setting (by full-data SSE)."""
     structs = [make(float(v)) for v in grid]
     _, _, sses = _best(design, structs, n_eff)
@@ -114,15 +122,23 @@ def screen_missing_effects(
             st, reg, _ = _best(design, structs, ne)
             n_best = st.settings["ripple.cycles_per_rev"]
             med = float(np.median(power[2:])) or 1e-30
-            detail = {"cycles_per_rev": n_best, "peak_ratio": float(power[int(n_best)] / med), "span_rad": span}
+            detail = {
+                "cycles_per_rev": n_best,
+                "peak_ratio": float(power[int(n_best)] / med),
+                "span_rad": span,
+            }
             out[effect] = screen(effect, design, model, base, base_reg, st, 3, detail, reg)
         elif effect == "stiction":
             grid = np.geomspace(0.005, 0.5, 10)
-            st, reg, vs = _refine_1d(design, lambda v: base.plus("stiction", **{"stiction.velocity": v}), grid, ne, steps=4)
+            st, reg, vs = _refine_1d(
+                design, lambda v: base.plus("stiction", **{"stiction.velocity": v}), grid, ne, steps=4
+            )
             out[effect] = screen(effect, design, model, base, base_reg, st, 2, {"velocity": vs}, reg)
         elif effect == "delay":
             grid = np.arange(0.0, MAX_DELAY_S + 1e-9, max(sig.dt_s, 0.001))
-            st, reg, d = _refine_1d(design, lambda v: base.plus("delay", **{"delay.seconds": v}), grid, ne, log=False)
+            st, reg, d = _refine_1d(
+                design, lambda v: base.plus("delay", **{"delay.seconds": v}), grid, ne, log=False
+            )
             out[effect] = screen(effect, design, model, base, base_reg, st, 2, {"seconds": d}, reg)
         elif effect == "saturation":
             au = np.abs(sig.u_v[sig.use])
@@ -130,21 +146,29 @@ def screen_missing_effects(
             grid = grid[grid < 0.999 * AMPLIFIER_LIMIT_V]
             if grid.size < 3:
                 continue
-            st, reg, lim = _refine_1d(design, lambda v: base.plus("saturation", **{"saturation.limit": v}), grid, ne)
+            st, reg, lim = _refine_1d(
+                design, lambda v: base.plus("saturation", **{"saturation.limit": v}), grid, ne
+            )
             above = float(np.mean(np.abs(sig.u_v) > lim))
-            out[effect] = screen(effect, design, model, base, base_reg, st, 2, {"limit": lim, "above": above}, reg)
+            out[effect] = screen(
+                effect, design, model, base, base_reg, st, 2, {"limit": lim, "above": above}, reg
+            )
         elif effect == "backlash":
             step = max(sig.encoder_step_rad, 1e-5)
             # Below a few encoder counts a dead band is indistinguishable from quantization.
             grid = np.geomspace(MIN_BACKLASH_COUNTS * step, 0.1, 12)
-            st, reg, w = _refine_1d(design, lambda v: base.plus("backlash", **{"backlash.width": v}), grid, ne)
+            st, reg, w = _refine_1d(
+                design, lambda v: base.plus("backlash", **{"backlash.width": v}), grid, ne
+            )
             out[effect] = screen(effect, design, model, base, base_reg, st, 3, {"width": w}, reg)
         elif effect == "compliance":
             out[effect] = _screen_compliance(design, model, base, base_reg)
     return out
 
 
-def _screen_compliance(design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression) -> Screen:
+def _screen_compliance(
+    design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression
+) -> Screen:
     ne = base_reg.n_eff
     f_max = min(300.0, 2.0 * design.sig.cutoff_hz)
     freqs = np.geomspace(1.0, f_max, 14)

@@ -54,7 +54,9 @@ EXPERIMENTS: dict[str, str] = {
         "constant-voltage sweep does not show a delay"
     ),
     "saturation": "constant-voltage steps above the suspected limit: the acceleration stops growing with u",
-    "backlash": "slow triangle moves with a load-side sensor (or a camera on a target): lost motion at each reversal",
+    "backlash": (
+        "slow triangle moves with a load-side sensor (or a camera on a target): lost motion at each reversal"
+    ),
     "compliance": "a chirp or small steps at 5–100 Hz: a resonance peak in the encoder's frequency response",
 }
 
@@ -112,49 +114,67 @@ def _resonance(ctx: EvidenceContext) -> tuple[float, float]:
     return float(f[band][i]), float(p[band][i] / (np.median(p[band]) or 1.0))
 
 
-def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, params: Mapping[str, float]) -> str:
+def describe(
+    effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, params: Mapping[str, float]
+) -> str:
     """One sentence of evidence with numbers for ``effect`` (``params``: the candidate's final values)."""
     p, d = params, scr.detail
     sig = ctx.sig
-    om = sig.omega_rad_s
-    tail = (f"; explains {100 * scr.gain_cv:.0f} % of the held-out residual torque, "
-            f"k-step error {-100 * cmp.improvement:+.0f} % (t = {cmp.t_stat:.1f})")
+    tail = (
+        f"; explains {100 * scr.gain_cv:.0f} % of the held-out residual torque, "
+        f"k-step error {-100 * cmp.improvement:+.0f} % (t = {cmp.t_stat:.1f})"
+    )
     if effect in ("offset", "coulomb_asymmetry"):
         mp, mn, se = _direction_means(ctx)
         same = (mp > 0) == (mn > 0)
         kind = "the same sign both ways: a bias torque" if same else "opposite signs: direction-dependent"
-        head = (f"residual torque averages {_mnm(mp)} moving positive and {_mnm(mn)} moving negative "
-                f"(± {se:.2g}), {kind}")
+        head = (
+            f"residual torque averages {_mnm(mp)} moving positive and {_mnm(mn)} moving negative "
+            f"(± {se:.2g}), {kind}"
+        )
         if effect == "offset":
             head += f"; bias {_mnm(p['offset.torque'])}"
         else:
-            head += (f"; Coulomb {p['coulomb.torque']:.3g} N·m positive, "
-                     f"{p['coulomb_asymmetry.negative']:.3g} N·m negative")
+            head += (
+                f"; Coulomb {p['coulomb.torque']:.3g} N·m positive, "
+                f"{p['coulomb_asymmetry.negative']:.3g} N·m negative"
+            )
         return head + tail
     if effect == "viscous_asymmetry":
-        return (f"residual torque grows with speed differently by direction: viscous "
-                f"{p['viscous.b']:.3g} N·m·s/rad positive, {p['viscous_asymmetry.negative']:.3g} negative" + tail)
+        return (
+            f"residual torque grows with speed differently by direction: viscous "
+            f"{p['viscous.b']:.3g} N·m·s/rad positive, {p['viscous_asymmetry.negative']:.3g} negative" + tail
+        )
     if effect == "gravity":
         th = sig.theta_rad[sig.use]
         g = p["gravity.torque"] * np.sin(th + p["gravity.phase"])
         r = ctx.base_reg.residual
         rr = float(np.corrcoef(r, g)[0, 1]) if np.std(g) > 0 and np.std(r) > 0 else 0.0
-        return (f"residual torque follows sin(θ {p['gravity.phase']:+.2f} rad) (r = {rr:.2f}), "
-                f"amplitude {p['gravity.torque']:.3g} N·m over a {np.ptp(th):.2f} rad range" + tail)
+        return (
+            f"residual torque follows sin(θ {p['gravity.phase']:+.2f} rad) (r = {rr:.2f}), "
+            f"amplitude {p['gravity.torque']:.3g} N·m over a {np.ptp(th):.2f} rad range" + tail
+        )
     if effect == "ripple":
-        return (f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.0f} cycles per revolution "
-                f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
-                f"{p['ripple.amplitude']:.3g} N·m" + tail)
+        return (
+            f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.0f} cycles per revolution "
+            f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
+            f"{p['ripple.amplitude']:.3g} N·m" + tail
+        )
     if effect == "stiction":
         e, tfrac = ctx.rest_share
         ba = ctx.breakaway
         extra = ""
         if ba is not None:
-            extra = (f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {ba.static_excess_se:.2g} "
-                     f"over Coulomb in {ba.count} creeping starts")
-        return (f"error concentrates at starts from rest ({100 * e:.0f} % of the prediction error in the "
-                f"{100 * tfrac:.0f} % of windows that start at rest){extra}; break-away "
-                f"{p['stiction.static_torque']:.3g} N·m, Stribeck velocity {p['stiction.velocity']:.3g} rad/s" + tail)
+            extra = (
+                f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {ba.static_excess_se:.2g} "
+                f"over Coulomb in {ba.count} creeping starts"
+            )
+        return (
+            f"error concentrates at starts from rest ({100 * e:.0f} % of the prediction error in the "
+            f"{100 * tfrac:.0f} % of windows that start at rest){extra}; break-away "
+            f"{p['stiction.static_torque']:.3g} N·m, Stribeck velocity {p['stiction.velocity']:.3g} rad/s"
+            + tail
+        )
     if effect == "delay":
         ba = ctx.breakaway
         extra = ""
@@ -162,23 +182,31 @@ def describe(effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, pa
             extra = f"; break-away lags the command by {1e3 * ba.delay_s:.1f} ± {1e3 * ba.delay_se:.1f} ms"
         if p["delay.seconds"] < 0.5 * sig.dt_s:
             extra += " (under half a sample period: the sampling convention, not a drive delay)"
-        return (f"input–residual alignment is best with the command delayed by "
-                f"{1e3 * p['delay.seconds']:.1f} ms{extra}" + tail)
+        return (
+            f"input–residual alignment is best with the command delayed by "
+            f"{1e3 * p['delay.seconds']:.1f} ms{extra}" + tail
+        )
     if effect == "saturation":
         lim = p["saturation.limit"]
         e, tfrac = ctx.concentration(np.abs(sig.u_v) > lim)
-        return (f"error appears when |u| > {lim:.2f} V ({100 * e:.0f} % of the residual torque in "
-                f"{100 * tfrac:.0f} % of the time)" + tail)
+        return (
+            f"error appears when |u| > {lim:.2f} V ({100 * e:.0f} % of the residual torque in "
+            f"{100 * tfrac:.0f} % of the time)" + tail
+        )
     if effect == "backlash":
         rev = np.abs(sig.alpha_rad_s2) < 0.1 * float(np.std(sig.alpha_rad_s2))
         e, tfrac = ctx.concentration(rev)
-        return (f"the encoder moves through a dead band of {p['backlash.width']:.3g} rad when the torque "
-                f"reverses, with reduced inertia ({100 * e:.0f} % of the residual torque in {100 * tfrac:.0f} % "
-                "of the time, near acceleration reversals)" + tail)
+        return (
+            f"the encoder moves through a dead band of {p['backlash.width']:.3g} rad when the torque "
+            f"reverses, with reduced inertia ({100 * e:.0f} % of the residual torque in {100 * tfrac:.0f} % "
+            "of the time, near acceleration reversals)" + tail
+        )
     if effect == "compliance":
         f, ratio = _resonance(ctx)
-        return (f"residual torque spectrum peaks at {f:.1f} Hz ({ratio:.0f}× the median); belt resonance "
-                f"{p['compliance.frequency']:.1f} Hz, damping {p['compliance.damping']:.2f}" + tail)
+        return (
+            f"residual torque spectrum peaks at {f:.1f} Hz ({ratio:.0f}× the median); belt resonance "
+            f"{p['compliance.frequency']:.1f} Hz, damping {p['compliance.damping']:.2f}" + tail
+        )
     return "no evidence computed" + tail
 
 
@@ -193,36 +221,46 @@ def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: st
     by = {c.effect: c for c in candidates}
     notes: list[str] = []
     if verdict is None:
-        notes.append("no effect explains a significant share of the residual: the model structure is "
-                     "adequate for this data (refit its parameters with `tracker model fit` if needed)")
+        notes.append(
+            "no effect explains a significant share of the residual: the model structure is "
+            "adequate for this data (refit its parameters with `tracker model fit` if needed)"
+        )
     if "offset" in by and "coulomb_asymmetry" in by and ({"offset", "coulomb_asymmetry"} & set(sig_names)):
         mp, mn, _ = _direction_means(ctx)
         notes.append(
             "offset and coulomb_asymmetry explain the same residual: on a rigid axis with Coulomb friction a "
             "bias torque o is direction-dependent friction with Fc⁺ = Fc + o, Fc⁻ = Fc − o "
-            f"(residual torque {_mnm(mp)} moving positive, {_mnm(mn)} negative). Named here as a bias torque. "
+            f"(residual torque {_mnm(mp)} moving positive, {_mnm(mn)} negative). "
+            "Named here as a bias torque. "
             "To tell them apart: " + EXPERIMENTS["offset"]
         )
     if "viscous_asymmetry" in sig_names and ({"offset", "coulomb_asymmetry"} & set(sig_names)):
-        notes.append("direction-dependent viscous friction competes with a bias torque: the one with the larger "
-                     "k-step gain is ranked first; diagnose again after adding it to see whether the other remains")
+        notes.append(
+            "direction-dependent viscous friction competes with a bias torque: the one with the larger "
+            "k-step gain is ranked first; diagnose again after adding it to see whether the other remains"
+        )
     if {"stiction", "delay"} & set(sig_names):
         ba = ctx.breakaway
         if ba is not None:
             notes.append(
-                f"stiction and delay both live at reversals; {ba.count} starts from rest give a break-away excess "
+                f"stiction and delay both live at reversals; {ba.count} creeping starts from rest give a "
+                "break-away excess "
                 f"of {_mnm(ba.static_excess_nm)} ± {ba.static_excess_se:.2g} at zero command rate (stiction) "
                 f"and a lag of {1e3 * ba.delay_s:.1f} ± {1e3 * ba.delay_se:.1f} ms (delay). To be sure: "
                 + EXPERIMENTS["stiction"]
             )
         else:
-            notes.append("stiction and delay both live at reversals and this run has too few starts from rest to "
-                         "separate them: " + EXPERIMENTS["stiction"])
+            notes.append(
+                "stiction and delay both live at reversals and this run has too few starts from rest to "
+                "separate them: " + EXPERIMENTS["stiction"]
+            )
     if {"backlash", "compliance"} <= set(sig_names):
         notes.append("backlash and compliance both hide a load state; " + EXPERIMENTS["compliance"])
     if {"gravity", "offset"} <= set(sig_names) and float(np.ptp(ctx.sig.theta_rad)) < 1.5:
-        notes.append(f"gravity and a bias torque look alike over the {np.ptp(ctx.sig.theta_rad):.2f} rad this run "
-                     "covers; " + EXPERIMENTS["gravity"])
+        notes.append(
+            f"gravity and a bias torque look alike over the {np.ptp(ctx.sig.theta_rad):.2f} rad this run "
+            "covers; " + EXPERIMENTS["gravity"]
+        )
     others = [e for e in sig_names if e != verdict]
     if verdict is not None and others:
         notes.append(f"also significant: {', '.join(others)}; add {verdict}, refit, and diagnose again")

@@ -49,7 +49,9 @@ class Excitation:
     bandwidth_rad_s: float = 25.0
 
 
-def reference_trajectory(duration_s: float, dt_s: float, rng: np.random.Generator, range_rad: float) -> FloatArray:
+def reference_trajectory(
+    duration_s: float, dt_s: float, rng: np.random.Generator, range_rad: float
+) -> FloatArray:
     """A reference of steps with holds, slow ramps and a sine sweep. Returns shape (n,), rad.
 
     The segments cycle so that every 10 s contains all three kinds: steps (0.6–1.2 s holds),
@@ -91,7 +93,9 @@ def reference_trajectory(duration_s: float, dt_s: float, rng: np.random.Generato
     return ref
 
 
-def shape_reference(ref: FloatArray, dt_s: float, max_speed: float, max_accel: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+def shape_reference(
+    ref: FloatArray, dt_s: float, max_speed: float, max_accel: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Rate- and acceleration-limit ``ref``; returns (position, velocity, acceleration), shape (n,)."""
     return _shape(np.ascontiguousarray(ref, dtype=float), dt_s, max_speed, max_accel)
 
@@ -216,7 +220,9 @@ def generate_measurement(
     dist = _ar1(white, a)
     u, theta, _ = _closed_loop(P, dt_s, ref_p, ref_v, ref_a, gains, dither, dist, initial_state())
     effects = ",".join(true_model.effects) or "none"
-    return Measurement(np.arange(n) * dt_s, u, theta, f"twin closed loop (hidden: {effects}; seed {seed})")
+    return Measurement(
+        np.arange(n, dtype=float) * dt_s, u, theta, f"twin closed loop (hidden: {effects}; seed {seed})"
+    )
 
 
 @njit(cache=True)
@@ -239,7 +245,11 @@ HIDDEN_RANGES: Mapping[str, Mapping[str, tuple[float, float, str]]] = {
     "gravity": {"torque": (0.03, 0.08, "abs"), "phase": (-math.pi, math.pi, "abs")},
     "delay": {"seconds": (0.004, 0.02, "abs")},
     "saturation": {"limit": (2.5, 6.0, "abs")},
-    "ripple": {"amplitude": (0.012, 0.03, "abs"), "cycles_per_rev": (8, 40, "int"), "phase": (-math.pi, math.pi, "abs")},
+    "ripple": {
+        "amplitude": (0.012, 0.03, "abs"),
+        "cycles_per_rev": (8, 40, "int"),
+        "phase": (-math.pi, math.pi, "abs"),
+    },
     "backlash": {"width": (0.006, 0.02, "abs")},
     "compliance": {"frequency": (8.0, 30.0, "abs"), "damping": (0.05, 0.2, "abs")},
 }
@@ -253,7 +263,9 @@ def random_hidden_model(axis: str, effects: Iterable[str], seed: int) -> AxisMod
     values: dict[str, float] = {}
     for name in names:
         if name not in HIDDEN_RANGES:
-            raise ConfigError(f"no physical range for hidden effect {name!r}; known: {', '.join(HIDDEN_RANGES)}")
+            raise ConfigError(
+                f"no physical range for hidden effect {name!r}; known: {', '.join(HIDDEN_RANGES)}"
+            )
         for param, (lo, hi, how) in HIDDEN_RANGES[name].items():
             v = float(rng.uniform(lo, hi))
             if how == "fc":

@@ -50,8 +50,14 @@ class FrictionPoint:
     too_fast: bool = False
 
     def to_dict(self) -> dict[str, object]:
-        return {"volts": self.volts, "velocity_rad_s": self.velocity_rad_s, "torque_nm": self.torque_nm,
-                "accel_rad_s2": self.accel_rad_s2, "moved": self.moved, "too_fast": self.too_fast}
+        return {
+            "volts": self.volts,
+            "velocity_rad_s": self.velocity_rad_s,
+            "torque_nm": self.torque_nm,
+            "accel_rad_s2": self.accel_rad_s2,
+            "moved": self.moved,
+            "too_fast": self.too_fast,
+        }
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,8 +96,10 @@ class FrictionResult:
 
     def stiction_excess_nm(self) -> tuple[float, float]:
         """Break-away torque above the Coulomb intercept, (positive, negative) direction."""
-        return (self.breakaway_positive_nm - self.positive.coulomb_nm,
-                self.breakaway_negative_nm - self.negative.coulomb_nm)
+        return (
+            self.breakaway_positive_nm - self.positive.coulomb_nm,
+            self.breakaway_negative_nm - self.negative.coulomb_nm,
+        )
 
     def shows_stiction(self) -> bool:
         """True when break-away needs clearly more torque than Coulomb in both directions."""
@@ -102,8 +110,13 @@ class FrictionResult:
 
     def to_dict(self) -> dict[str, object]:
         def line(li: FrictionLine) -> dict[str, float]:
-            return {"viscous_nm_s_per_rad": li.viscous_nm_s_per_rad, "coulomb_nm": li.coulomb_nm,
-                    "viscous_se": li.viscous_se, "coulomb_se": li.coulomb_se, "points": li.points}
+            return {
+                "viscous_nm_s_per_rad": li.viscous_nm_s_per_rad,
+                "coulomb_nm": li.coulomb_nm,
+                "viscous_se": li.viscous_se,
+                "coulomb_se": li.coulomb_se,
+                "points": li.points,
+            }
 
         ep, en = self.stiction_excess_nm()
         return {
@@ -115,8 +128,10 @@ class FrictionResult:
             "stiction_excess_nm": {"positive": ep, "negative": en},
             "shows_stiction": self.shows_stiction(),
             "params": self.params,
-            "plot": {"velocity_rad_s": [p.velocity_rad_s for p in self.points if p.moved],
-                     "torque_nm": [p.torque_nm for p in self.points if p.moved]},
+            "plot": {
+                "velocity_rad_s": [p.velocity_rad_s for p in self.points if p.moved],
+                "torque_nm": [p.torque_nm for p in self.points if p.moved],
+            },
             "points": [p.to_dict() for p in self.points],
             "simulated_s": self.simulated_s,
         }
@@ -175,11 +190,21 @@ def _breakaway_volts(ax: _Axis, s: float, start_v: float, step_rad: float) -> fl
         if abs(th - th0) > step_rad:
             ax.step(0.0)
             return v
-    raise DataError(f"{ax.axis}: the axis did not move with {AMPLIFIER_LIMIT_V:g} V; is the amplifier enabled?")
+    raise DataError(
+        f"{ax.axis}: the axis did not move with {AMPLIFIER_LIMIT_V:g} V; is the amplifier enabled?"
+    )
 
 
-def _constant_voltage_run(ax: _Axis, s: float, volts: float, pulse_s: float, end_rad: float,
-                          gain: float, inertia: float, max_s: float) -> FrictionPoint:
+def _constant_voltage_run(
+    ax: _Axis,
+    s: float,
+    volts: float,
+    pulse_s: float,
+    end_rad: float,
+    gain: float,
+    inertia: float,
+    max_s: float,
+) -> FrictionPoint:
     """The seed's run: 10 V pulse, then constant ``volts``; mean velocity and corrected torque."""
     n_pulse = max(1, int(round(pulse_s / ax.dt)))
     for _ in range(n_pulse):
@@ -210,8 +235,10 @@ def _constant_voltage_run(ax: _Axis, s: float, volts: float, pulse_s: float, end
 def _fit_line(points: list[FrictionPoint], s: float) -> FrictionLine:
     pts = [p for p in points if p.moved and p.velocity_rad_s * s > 0]
     if len(pts) < 3:
-        raise DataError(f"friction ID: only {len(pts)} moving runs in the {'positive' if s > 0 else 'negative'} "
-                        "direction; need 3 (widen the voltage range)")
+        raise DataError(
+            f"friction ID: only {len(pts)} moving runs in the {'positive' if s > 0 else 'negative'} "
+            "direction; need 3 (widen the voltage range)"
+        )
     w = np.array([p.velocity_rad_s for p in pts])
     tq = np.array([p.torque_nm for p in pts])
     coef, cov = np.polyfit(w, tq, 1, cov=True) if len(pts) > 3 else (np.polyfit(w, tq, 1), np.zeros((2, 2)))
@@ -284,11 +311,21 @@ def run_friction_id(
     finally:
         driver.command(axis, 0.0)
         driver.disable()
-    return FrictionResult(axis, gain, _fit_line(points, 1.0), _fit_line(points, -1.0), breakaway[1.0],
-                          breakaway[-1.0], tuple(points), ax.ticks * ax.dt)
+    return FrictionResult(
+        axis,
+        gain,
+        _fit_line(points, 1.0),
+        _fit_line(points, -1.0),
+        breakaway[1.0],
+        breakaway[-1.0],
+        tuple(points),
+        ax.ticks * ax.dt,
+    )
 
 
-def _next_voltage(done: list[FrictionPoint], s: float, v_break: float, speed: float, gain: float, i: int) -> float:
+def _next_voltage(
+    done: list[FrictionPoint], s: float, v_break: float, speed: float, gain: float, i: int
+) -> float:
     """The voltage expected to hold ``speed``.
 
     With two runs that moved (settled or too fast), from the line through them; before that a

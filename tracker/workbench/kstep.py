@@ -47,7 +47,9 @@ BACKLASH_STARTS = 9  # places in the dead band tried at each window start
 
 
 @njit(cache=True)
-def _load_observer(P: FloatArray, th_m: FloatArray, om_m: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
+def _load_observer(
+    P: FloatArray, th_m: FloatArray, om_m: FloatArray, dt: float
+) -> tuple[FloatArray, FloatArray]:
     """Integrate the load side (belt spring with dead band, gravity) driven by the motor."""
     n = th_m.shape[0]
     n_sub = int(P[I_NSUB])
@@ -77,8 +79,16 @@ def _load_observer(P: FloatArray, th_m: FloatArray, om_m: FloatArray, dt: float)
 
 @njit(cache=True)
 def _shoot_windows(
-    P: FloatArray, u: FloatArray, dt: float, starts: NDArray[np.int64], horizon: int, settle: int,
-    x0s: FloatArray, y: FloatArray, offsets: FloatArray, vrels: FloatArray,
+    P: FloatArray,
+    u: FloatArray,
+    dt: float,
+    starts: NDArray[np.int64],
+    horizon: int,
+    settle: int,
+    x0s: FloatArray,
+    y: FloatArray,
+    offsets: FloatArray,
+    vrels: FloatArray,
 ) -> FloatArray:
     """Per window, start the load at each (offset, relative speed), keep the start that best
     predicts the first ``settle`` samples, return that start's errors. Shape (m, horizon)."""
@@ -110,12 +120,16 @@ def _shoot_windows(
     return out
 
 
-def observe_load(model: AxisModel, theta_m_rad: FloatArray, omega_m_rad_s: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
+def observe_load(
+    model: AxisModel, theta_m_rad: FloatArray, omega_m_rad_s: FloatArray, dt_s: float
+) -> tuple[FloatArray, FloatArray]:
     """Load angle and velocity (shape (n,) each) of a two-mass ``model`` driven by the motor."""
     P = pack_params(model, dt_s, quantize=False)
     if P[I_TWO] == 0.0:
         return theta_m_rad.copy(), omega_m_rad_s.copy()
-    return _load_observer(P, np.ascontiguousarray(theta_m_rad), np.ascontiguousarray(omega_m_rad_s), float(dt_s))
+    return _load_observer(
+        P, np.ascontiguousarray(theta_m_rad), np.ascontiguousarray(omega_m_rad_s), float(dt_s)
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,7 +157,9 @@ class Comparison:
 class KStepJudge:
     """Scores models by k-step prediction on windows of one measured run."""
 
-    def __init__(self, meas: Measurement, sig: Signals, horizon_s: float | None = None, stride: int | None = None) -> None:
+    def __init__(
+        self, meas: Measurement, sig: Signals, horizon_s: float | None = None, stride: int | None = None
+    ) -> None:
         self.meas = meas
         self.dt = meas.dt_s
         self.k = max(2, int(round((horizon_s or DEFAULT_HORIZON_S) / self.dt)))
@@ -185,13 +201,16 @@ class KStepJudge:
         """
         x0 = self.initial_states(model)
         if not model.has("backlash"):
-            return self.y - predict_windows(model, self.u, self.dt, self.starts, self.k + 1, x0)
+            pred = predict_windows(model, self.u, self.dt, self.starts, self.k + 1, x0)
+            return np.asarray(self.y - pred, dtype=float)
         half = 0.5 * model.params["backlash.width"]
         offsets = np.linspace(-half, half, BACKLASH_STARTS)
         speed = float(np.percentile(np.abs(self.omega_s), 90)) or 1.0
         vrels = speed * np.array([-0.3, -0.1, -0.03, 0.0, 0.03, 0.1, 0.3])
         P = pack_params(model, self.dt, quantize=False)
-        return _shoot_windows(P, self.u, self.dt, self.starts, self.k + 1, self.k_settle, x0, self.y, offsets, vrels)
+        return _shoot_windows(
+            P, self.u, self.dt, self.starts, self.k + 1, self.k_settle, x0, self.y, offsets, vrels
+        )
 
     def score(self, model: AxisModel) -> KStepScore:
         e = self.errors(model)
@@ -295,8 +314,15 @@ def refine(
         m = model.with_params(wrap(z * scale))
         return judge.errors(m)[:, judge.k_settle + 1 :: 3].ravel()
 
-    sol = optimize.least_squares(resid, z0, bounds=(lo / scale, hi / scale), x_scale=1.0, max_nfev=max_evals,
-                                 diff_step=1e-3, method="trf")
+    sol = optimize.least_squares(
+        resid,
+        z0,
+        bounds=(lo / scale, hi / scale),
+        x_scale=1.0,
+        max_nfev=max_evals,
+        diff_step=1e-3,
+        method="trf",
+    )
     fitted = model.with_params(wrap(sol.x * scale))
     # Standard errors: Gauss–Newton covariance, inflated by the residual's correlation length
     # (errors within a prediction window are far from independent).

@@ -56,7 +56,11 @@ class Structure:
 
     @classmethod
     def of(cls, model: AxisModel) -> Structure:
-        s = {k: model.params[k] for k in (*NONLINEAR.values(), "compliance.frequency", "compliance.damping") if k in model.params}
+        s = {
+            k: model.params[k]
+            for k in (*NONLINEAR.values(), "compliance.frequency", "compliance.damping")
+            if k in model.params
+        }
         return cls(tuple(model.effects), s)
 
     def plus(self, effect: str, **settings: float) -> Structure:
@@ -111,6 +115,7 @@ class TorqueDesign:
         self._cache: dict[tuple[object, ...], FloatArray] = {}
 
     def _col(self, key: tuple[object, ...], make: Callable[[], FloatArray]) -> FloatArray:
+        # ``make`` is called at once (never stored), so closures over loop variables are safe.
         if key not in self._cache:
             self._cache[key] = self.sig.lowpass(make())
         return self._cache[key]
@@ -157,7 +162,9 @@ class TorqueDesign:
         s, om, th = self.sig, self.sig.omega_rad_s, self.sig.theta_rad
         st = structure.settings
         al_l = self.load_alpha(structure)
-        cols: list[Column] = [("Jm", s.alpha_rad_s2)] if al_l is None else [("Jm", s.alpha_rad_s2), ("Jl", al_l)]
+        cols: list[Column] = (
+            [("Jm", s.alpha_rad_s2)] if al_l is None else [("Jm", s.alpha_rad_s2), ("Jl", al_l)]
+        )
         cols += [("b", om), ("Fc", self._col(("sgn",), lambda: self.sgn))]
         for e in structure.effects:
             if e == "offset":
@@ -171,11 +178,12 @@ class TorqueDesign:
                 cols.append(("g_c", self._col(("cos", 1.0), lambda: np.cos(th))))
             elif e == "ripple":
                 n = st["ripple.cycles_per_rev"]
-                cols.append(("r_s", self._col(("sin", n), lambda: np.sin(n * th))))
-                cols.append(("r_c", self._col(("cos", n), lambda: np.cos(n * th))))
+                cols.append(("r_s", self._col(("sin", n), lambda: np.sin(n * th))))  # noqa: B023
+                cols.append(("r_c", self._col(("cos", n), lambda: np.cos(n * th))))  # noqa: B023
             elif e == "stiction":
                 vs = st["stiction.velocity"]
-                cols.append(("dFs", self._col(("strib", vs), lambda: np.exp(-((om / vs) ** 2)) * self.sgn)))
+                strib = self._col(("strib", vs), lambda: np.exp(-((om / vs) ** 2)) * self.sgn)  # noqa: B023
+                cols.append(("dFs", strib))
         return cols
 
     def fit(self, structure: Structure, n_eff: float | None = None, cv: bool = True) -> Regression:
@@ -184,12 +192,18 @@ class TorqueDesign:
         idx = self.sig.use
         x = np.column_stack([c[idx] for _, c in cols])
         st = structure.settings
-        y = self.torque(st.get("delay.seconds", 0.0) if "delay" in structure.effects else 0.0,
-                        st.get("saturation.limit", AMPLIFIER_LIMIT_V) if "saturation" in structure.effects else AMPLIFIER_LIMIT_V)
+        y = self.torque(
+            st.get("delay.seconds", 0.0) if "delay" in structure.effects else 0.0,
+            st.get("saturation.limit", AMPLIFIER_LIMIT_V)
+            if "saturation" in structure.effects
+            else AMPLIFIER_LIMIT_V,
+        )
         return regress(tuple(n for n, _ in cols), x, y[idx], self.sig.fold[idx], n_eff, cv)
 
 
-def model_params(model: AxisModel, structure: Structure, reg: Regression) -> tuple[dict[str, float], dict[str, float]]:
+def model_params(
+    model: AxisModel, structure: Structure, reg: Regression
+) -> tuple[dict[str, float], dict[str, float]]:
     """Model parameters (full names, SI) and standard errors implied by a regression."""
     c = dict(zip(reg.names, reg.coef, strict=True))
     idx = {n: i for i, n in enumerate(reg.names)}
@@ -223,7 +237,10 @@ def model_params(model: AxisModel, structure: Structure, reg: Regression) -> tup
         d2 = derived(b2)
         jac[:, j] = [(d2[k] - values[k]) / h for k in keys]
     var = np.einsum("ij,jk,ik->i", jac, reg.cov, jac)
-    stderr = {k: float(math.sqrt(max(v, 0.0))) if np.isfinite(v) else math.inf for k, v in zip(keys, var, strict=True)}
+    stderr = {
+        k: float(math.sqrt(max(v, 0.0))) if np.isfinite(v) else math.inf
+        for k, v in zip(keys, var, strict=True)
+    }
     for k, v in structure.settings.items():
         if k.split(".")[0] in structure.effects:
             values[k] = v
@@ -235,9 +252,17 @@ def model_params(model: AxisModel, structure: Structure, reg: Regression) -> tup
     return clipped, stderr
 
 
-def screen(effect: str, design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression,
-           structure: Structure, extra_dof: int, detail: Mapping[str, float] | None = None,
-           reg: Regression | None = None) -> Screen:
+def screen(
+    effect: str,
+    design: TorqueDesign,
+    model: AxisModel,
+    base: Structure,
+    base_reg: Regression,
+    structure: Structure,
+    extra_dof: int,
+    detail: Mapping[str, float] | None = None,
+    reg: Regression | None = None,
+) -> Screen:
     """Score ``structure`` (``base`` plus ``effect``) against the base regression."""
     if reg is None or not reg.sse_fold.any():  # grid searches fit without the held-out folds
         reg = design.fit(structure, base_reg.n_eff)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 from tracker.plant.model import AxisModel
 from tracker.workbench.data import Measurement
@@ -11,7 +11,7 @@ from tracker.workbench.experiments import generate_measurement, random_hidden_mo
 DURATION_S = 24.0
 
 
-@lru_cache(maxsize=None)
+@cache
 def hidden_case(effects: tuple[str, ...], seed: int) -> tuple[AxisModel, Measurement]:
     """The true rig (pan preset + ``effects`` at random physical parameters) and its closed-loop log."""
     true = random_hidden_model("pan", effects, seed) if effects else AxisModel.for_axis("pan")

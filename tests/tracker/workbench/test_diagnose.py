@@ -12,9 +12,9 @@ import math
 
 import pytest
 
+from tracker.plant.effects import OPTIONAL_EFFECTS
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose import Diagnosis, diagnose
-from tracker.plant.effects import OPTIONAL_EFFECTS
 
 from .hidden_cases import hidden_case
 

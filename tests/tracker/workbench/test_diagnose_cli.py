@@ -33,12 +33,29 @@ def test_json_follows_the_contract(delay_log: Path, capsys: pytest.CaptureFixtur
     assert all(isinstance(c["fit_percent"], float) for c in out["candidates"])
 
 
-def test_model_that_has_the_effect_is_not_told_to_grow(delay_log: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_model_that_has_the_effect_is_not_told_to_grow(
+    delay_log: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     _, meas = hidden_case(("delay",), 107)
     true, _ = hidden_case(("delay",), 107)
     d = true.params["delay.seconds"]
-    assert main(["model", "diagnose", str(delay_log), "--axis", "pan", "--effects", "delay",
-                 "--set", f"delay.seconds={d}", "--json"]) == 0
+    assert (
+        main(
+            [
+                "model",
+                "diagnose",
+                str(delay_log),
+                "--axis",
+                "pan",
+                "--effects",
+                "delay",
+                "--set",
+                f"delay.seconds={d}",
+                "--json",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert out["verdict"] is None
     assert "delay" not in {c["effect"] for c in out["candidates"]}
@@ -53,10 +70,15 @@ def test_text_output_is_ranked_cards(delay_log: Path, capsys: pytest.CaptureFixt
 
 @pytest.mark.parametrize(
     ("content", "needle"),
-    [("t,u\n0,1\n", "missing column theta"), ("t,u,theta\n" + "".join(f"{i * 1e-3},0,nan\n" for i in range(300)), "line 2")],
+    [
+        ("t,u\n0,1\n", "missing column theta"),
+        ("t,u,theta\n" + "".join(f"{i * 1e-3},0,nan\n" for i in range(300)), "line 2"),
+    ],
     ids=["missing-column", "nan"],
 )
-def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str, needle: str) -> None:
+def test_bad_input_is_one_error_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str, needle: str
+) -> None:
     p = tmp_path / "bad.csv"
     p.write_text(content)
     assert main(["model", "diagnose", str(p), "--axis", "pan"]) == 2
@@ -64,7 +86,9 @@ def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert err.startswith("error:") and needle in err and err.count("\n") == 1
 
 
-def test_a_log_where_the_axis_never_moves_is_an_error_not_a_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_log_where_the_axis_never_moves_is_an_error_not_a_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     p = tmp_path / "still.csv"
     p.write_text("t,u,theta\n" + "".join(f"{i * 1e-3},0.1,0\n" for i in range(2000)))
     assert main(["model", "diagnose", str(p), "--axis", "pan"]) == 2

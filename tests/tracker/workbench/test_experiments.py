@@ -72,7 +72,9 @@ def test_unknown_hidden_effect_and_too_short_runs_are_refused() -> None:
 
 @settings(max_examples=30, deadline=None)
 @given(st.lists(st.floats(-2.0, 2.0), min_size=2, max_size=8), st.floats(0.5, 6.0), st.floats(20.0, 300.0))
-def test_shaped_reference_respects_speed_and_acceleration_limits(levels: list[float], vmax: float, amax: float) -> None:
+def test_shaped_reference_respects_speed_and_acceleration_limits(
+    levels: list[float], vmax: float, amax: float
+) -> None:
     ref = np.repeat(np.array(levels), 300)
     p, v, a = shape_reference(ref, 1e-3, vmax, amax)
     assert np.all(np.abs(v) <= vmax + 1e-9)

@@ -15,8 +15,12 @@ from tracker.workbench.friction_id import run_friction_id
 
 def _rig(axis: str, effects: tuple[str, ...] = (), params: dict[str, float] | None = None) -> SimDriver:
     other = "tilt" if axis == "pan" else "pan"
-    return SimDriver({axis: AxisModel.for_axis(axis, ["quantization", *effects], params or {}),
-                      other: AxisModel.for_axis(other, ["quantization"])})
+    return SimDriver(
+        {
+            axis: AxisModel.for_axis(axis, ["quantization", *effects], params or {}),
+            other: AxisModel.for_axis(other, ["quantization"]),
+        }
+    )
 
 
 @pytest.mark.parametrize("axis", ["pan", "tilt"])
@@ -31,8 +35,12 @@ def test_recovers_the_seed_friction_of_each_axis(axis: str) -> None:
 
 def test_recovers_direction_dependent_friction() -> None:
     # The seed's measured pan values (App. A): Coulomb 0.0417 / 0.0466 N·m, viscous 1.1e-3 / 1.3e-3.
-    params = {"coulomb.torque": 0.0417, "coulomb_asymmetry.negative": 0.0466,
-              "viscous.b": 1.1e-3, "viscous_asymmetry.negative": 1.3e-3}
+    params = {
+        "coulomb.torque": 0.0417,
+        "coulomb_asymmetry.negative": 0.0466,
+        "viscous.b": 1.1e-3,
+        "viscous_asymmetry.negative": 1.3e-3,
+    }
     res = run_friction_id(_rig("pan", ("coulomb_asymmetry", "viscous_asymmetry"), params), "pan")
     for name, value in res.params.items():
         assert value == pytest.approx(params[name], rel=0.03), name
@@ -60,8 +68,20 @@ def test_progress_rises_to_one_and_cancel_stops_the_job() -> None:
 
 
 def test_cli_json_has_per_direction_friction_and_plot_data(capsys: pytest.CaptureFixture[str]) -> None:
-    rc = main(["friction-id", "--axis", "pan", "--json", "--voltages", "5", "--effects", "coulomb_asymmetry",
-               "--set", "coulomb_asymmetry.negative=0.07"])
+    rc = main(
+        [
+            "friction-id",
+            "--axis",
+            "pan",
+            "--json",
+            "--voltages",
+            "5",
+            "--effects",
+            "coulomb_asymmetry",
+            "--set",
+            "coulomb_asymmetry.negative=0.07",
+        ]
+    )
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
     assert out["negative"]["coulomb_nm"] == pytest.approx(0.07, rel=0.02)

@@ -1,0 +1,238 @@
+"""Judging one candidate effect: does the simulation agree with the screening, and is it physical?
+
+The thresholds and rules of significance live here (see docs/workbench.md, "Diagnosis"); the
+orchestration is :func:`tracker.workbench.diagnose.diagnose`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from tracker.plant.model import AxisModel
+from tracker.workbench.evidence import EvidenceContext
+from tracker.workbench.kstep import Comparison, HeldOutSearch, KStepJudge, KStepScore, held_out_search, refine
+from tracker.workbench.screening import Screen
+
+# A candidate must explain this share of the held-out residual torque (screening) ...
+MIN_SCREEN_GAIN = 0.08
+MAX_SCREEN_P = 1e-3
+MAX_SCREEN_P_JUDGED = 0.05
+# ... and cut the k-step prediction error by this share, consistently over blocks of windows.
+MIN_KSTEP_GAIN = 0.05
+MIN_KSTEP_ROBUST = 0.025
+# Stiction is judged on its break-away excess when the moving data cannot see it.
+MIN_BREAKAWAY_T = 4.0
+REFINE_TOP = 2
+MIN_BACKLASH_GAIN = 0.15
+MIN_BACKLASH_SIGNIFICANT_COUNTS = 8
+MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but not explode
+MIN_DELAY_SAMPLES = 0.5
+MIN_HELD_OUT_GAIN = 0.05
+STICTION_RATIOS = (1.1, 1.25, 1.4, 1.6, 1.8, 2.0, 2.4)  # break-away / Coulomb tried by simulation
+STRIBECK_VELOCITIES = (0.02, 0.05, 0.1)  # rad/s
+TORQUE_EFFECTS = ("offset", "coulomb_asymmetry", "viscous_asymmetry", "gravity", "ripple")
+# Torque-type effects keep their inverse-dynamics parameters (a direct regression on the torque
+# is more accurate than a k-step refit); these act through the simulation and are refitted.
+REFINED_BY_SIMULATION = ("stiction", "delay", "saturation", "compliance")
+
+
+@dataclass(slots=True)
+class Judged:
+    """One candidate under judgement (mutable: refits replace its model, score and comparison)."""
+
+    effect: str
+    screen: Screen
+    model: AxisModel
+    score: KStepScore
+    cmp: Comparison
+    significant: bool
+    screen_ok: bool
+    stderr: dict[str, float] = field(default_factory=dict)
+
+    def rank_key(self) -> tuple[bool, float]:
+        """Significant first, then by the mean of held-out screening gain and k-step gain."""
+        return (not self.significant, -0.5 * (self.screen.gain_cv + self.cmp.improvement))
+
+
+def with_values(model: AxisModel, values: Mapping[str, float], add: str | None = None) -> AxisModel:
+    """``model`` (plus effect ``add``) with ``values`` set, keeping every other value.
+
+    (``AxisModel.with_effect`` would reset an existing asymmetry to symmetric.)
+    """
+    effects = (*model.effects, add) if add and not model.has(add) else model.effects
+    keep = {k: v for k, v in model.params.items()}
+    keep.update(
+        {k: v for k, v in values.items() if k.split(".")[0] in (*effects, "inertia", "viscous", "coulomb")}
+    )
+    return AxisModel.create(model.gain_nm_per_v, {}, effects, keep)
+
+
+def _effect_only(scr: Screen) -> Screen:
+    """``scr`` with only the new effect's own parameters (the base model keeps its values)."""
+    own = {k: v for k, v in scr.params.items() if k.split(".")[0] == scr.effect}
+    return Screen(
+        scr.effect,
+        scr.structure,
+        scr.regression,
+        own,
+        scr.stderr,
+        scr.gain_cv,
+        scr.p_value,
+        scr.folds_improve,
+        scr.detail,
+    )
+
+
+def _candidate_model(model: AxisModel, scr: Screen, ctx: EvidenceContext) -> AxisModel:
+    values = dict(scr.params)
+    if scr.effect == "stiction" and ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T:
+        fc = values.get("coulomb.torque", model.params["coulomb.torque"])
+        values["stiction.static_torque"] = max(
+            values["stiction.static_torque"], fc + ctx.breakaway.static_excess_nm
+        )
+    return with_values(model, values, add=scr.effect)
+
+
+def judge_candidate(
+    scr: Screen,
+    screens: Mapping[str, Screen],
+    judge: KStepJudge,
+    base_model: AxisModel,
+    base_score: KStepScore,
+    ctx: EvidenceContext,
+    two_mass: bool,
+    cancel: Callable[[], bool] | None,
+) -> Judged:
+    """Build the candidate model of ``scr``'s effect and decide whether it is significant."""
+    effect, dt = scr.effect, ctx.sig.dt_s
+    cand = _candidate_model(base_model, scr, ctx)
+    score = judge.score(cand)
+    # Another missing effect can bias the regression's J, b, Fc (a delay shrinks the apparent
+    # inertia): also try the effect alone on the base model's values, keep the better.
+    alone = _candidate_model(base_model, _effect_only(scr), ctx)
+    alone_score = judge.score(alone)
+    if alone_score.sse < score.sse:
+        cand, score = alone, alone_score
+    cmp = judge.compare(base_score, score)
+    # Torque effects must pass a strict F-test; the others must also win the k-step judgement
+    # by a margin, so a looser one suffices (another missing effect left in the residual
+    # shrinks its effective sample size).
+    max_p = MAX_SCREEN_P if effect in TORQUE_EFFECTS else MAX_SCREEN_P_JUDGED
+    screen_ok = scr.gain_cv >= MIN_SCREEN_GAIN and scr.p_value <= max_p and scr.folds_improve
+    if effect == "stiction":
+        # Moving data barely sees static friction (the axis leaves the Stribeck zone in a few
+        # ms): search the break-away torque by simulation, chosen and judged on halves.
+        search = _stiction_search(judge, base_model, base_score, cand)
+        if search.held_out_gain > cmp.improvement:
+            cand, score = search.best, judge.score(search.best)
+            cmp = judge.compare(base_score, score)
+        by_breakaway = ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T
+        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway
+    significant = screen_ok and _kstep_ok(effect, cmp)
+    if effect == "backlash":
+        significant = _backlash_significant(scr, screens, cmp, ctx.sig.encoder_step_rad)
+    elif not screen_ok and two_mass and effect in TORQUE_EFFECTS and cmp.improvement > 0:
+        # With a belt or dead band in the model the torque regression is swamped by the rough
+        # load reconstruction: refit the effect with the friction by simulation and judge it
+        # on held-out halves of the k-step error.
+        names = [k for k in cand.params if k.split(".")[0] in (effect, "viscous", "coulomb")]
+        cand, _ = refine(judge, cand, names, max_evals=20, cancel=cancel)
+        score = judge.score(cand)
+        cmp = judge.compare(base_score, score)
+        significant = min(judge.half_gains(base_score, score)) >= MIN_HELD_OUT_GAIN and _kstep_ok(effect, cmp)
+    significant = significant and _physical(effect, cand, dt)
+    return Judged(effect, scr, cand, score, cmp, significant, screen_ok)
+
+
+def refine_leaders(
+    rows: list[Judged],
+    judge: KStepJudge,
+    base_score: KStepScore,
+    dt_s: float,
+    step: Callable[[float], None],
+    cancel: Callable[[], bool] | None,
+) -> None:
+    """Refit by simulation the leading candidates the screening supports (in place).
+
+    Gives the verdict its final parameters and standard errors, and a second chance to effects
+    acting through the simulation whose screening values (inertia split, damping) are rough.
+    """
+    hopeful = [r for r in rows if r.screen_ok and r.cmp.improvement > 0 and r.effect in REFINED_BY_SIMULATION]
+    for i, r in enumerate(hopeful[:REFINE_TOP]):
+        step(0.7 + 0.1 * i)
+        refined, se = refine(judge, r.model, cancel=cancel)
+        score = judge.score(refined)
+        if score.sse < r.score.sse:
+            r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
+            r.significant = _kstep_ok(r.effect, r.cmp) and _physical(r.effect, refined, dt_s)
+
+
+def rank(rows: list[Judged]) -> None:
+    """Best first (in place); a bias torque ahead of its equivalent direction-dependent friction."""
+    rows.sort(key=Judged.rank_key)
+    names = [r.effect for r in rows]
+    if "offset" in names and "coulomb_asymmetry" in names:
+        i, j = names.index("coulomb_asymmetry"), names.index("offset")
+        if i < j and rows[i].significant == rows[j].significant:
+            gi, gj = rows[i].cmp.improvement, rows[j].cmp.improvement
+            if gj >= gi - 0.02 * max(abs(gi), 1e-9) - 0.01:
+                rows[i], rows[j] = rows[j], rows[i]
+
+
+def _stiction_search(
+    judge: KStepJudge, base: AxisModel, base_score: KStepScore, cand: AxisModel
+) -> HeldOutSearch:
+    fc = cand.params["coulomb.torque"]
+    grid = []
+    for ratio in STICTION_RATIOS:
+        for vs in STRIBECK_VELOCITIES:
+            grid.append(
+                with_values(
+                    base, {"stiction.static_torque": fc * ratio, "stiction.velocity": vs}, add="stiction"
+                )
+            )
+    return held_out_search(judge, base_score, grid)
+
+
+def _physical(effect: str, model: AxisModel, dt_s: float) -> bool:
+    """False for values that are no physical effect: a delay below half a sample period is the
+    sampling convention (when in the period the encoder is read), not a transport delay."""
+    if effect == "delay":
+        return model.params["delay.seconds"] >= MIN_DELAY_SAMPLES * dt_s
+    return True
+
+
+def _kstep_ok(effect: str, cmp: Comparison) -> bool:
+    """The simulation agrees with the screening.
+
+    Torque effects are measured best by the torque regression (a small viscous asymmetry
+    barely moves a 30 ms prediction): the simulation must only agree in direction. Effects
+    that act through the command or a hidden state are where inverse dynamics can be fooled
+    (a clip level or a belt fitted to noise), so they must win by a margin.
+    """
+    if effect in TORQUE_EFFECTS:
+        return cmp.improvement > 0.0 and cmp.robust_improvement > 0.0
+    return cmp.improvement >= MIN_KSTEP_GAIN and cmp.robust_improvement >= MIN_KSTEP_ROBUST
+
+
+def _backlash_significant(
+    scr: Screen, screens: Mapping[str, Screen], cmp: Comparison, step_rad: float
+) -> bool:
+    """Backlash by screening alone, with a stricter bar.
+
+    Where the load sits in the dead band is not observable over a short prediction window (a
+    load without friction coasts in the gap), so the k-step judgement cannot confirm backlash
+    even for the true model. The screening reconstructs the load through the whole run instead;
+    it must explain a large share of the held-out torque, and more than a belt would; its width
+    must exceed a few encoder counts (below that it is quantization at reversals), and the
+    simulation must not be made much worse by it.
+    """
+    other = screens.get("compliance")
+    beats_belt = other is None or scr.gain_cv > other.gain_cv
+    wide = scr.params.get("backlash.width", 0.0) >= MIN_BACKLASH_SIGNIFICANT_COUNTS * max(step_rad, 1e-12)
+    sane = cmp.improvement > MIN_BACKLASH_KSTEP
+    return scr.gain_cv >= MIN_BACKLASH_GAIN and scr.p_value <= MAX_SCREEN_P and beats_belt and wide and sane
+
+
+__all__ = ["TORQUE_EFFECTS", "Judged", "judge_candidate", "rank", "refine_leaders", "with_values"]
