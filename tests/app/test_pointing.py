@@ -216,3 +216,18 @@ def test_openapi_lists_the_issue_endpoints(rig: Rig) -> None:
         "/api/v1/workbench/measurements",
     ):
         assert p in paths
+
+
+def test_every_page_asset_is_served_locally(rig: Rig) -> None:
+    import re
+
+    for page in ("/", "/api/docs"):
+        html = rig.client.get(page).text
+        refs = re.findall(r'(?:src|href)=["\']([^"\']+)["\']', html) + re.findall(
+            r'url: ?["\']([^"\']+)', html
+        )
+        external = [r for r in refs if re.match(r"(https?:)?//", r)]
+        assert not external, f"{page} loads {external}"
+        for ref in refs:
+            if ref.startswith("/static/"):
+                assert rig.client.get(ref).status_code == 200, ref
