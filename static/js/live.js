@@ -164,29 +164,45 @@ function placeField(f) {
 }
 
 // Jog: press sends a rate and repeats every 150 ms; release (or leaving the button) stops.
+// Arrow keys do the same while no text field has the focus.
+const jogTimers = {};
+function jogPress(axis, dir, button) {
+  const key = `${axis}${dir}`;
+  if (jogTimers[key]) return;
+  button?.classList.add("held");
+  const send = () => put(`/jog/${axis}`, { rate_deg_s: +$("jog-speed").value * dir })
+    .catch((e) => { jogRelease(axis, dir, button); toast(e.message, true); });
+  send();
+  jogTimers[key] = setInterval(send, 150);
+}
+function jogRelease(axis, dir, button) {
+  const key = `${axis}${dir}`;
+  if (!jogTimers[key]) return;
+  clearInterval(jogTimers[key]); delete jogTimers[key];
+  button?.classList.remove("held");
+  del(`/jog/${axis}`).catch(() => {});
+}
+
+const ARROWS = { ArrowLeft: ["pan", 1], ArrowRight: ["pan", -1], ArrowUp: ["tilt", 1], ArrowDown: ["tilt", -1] };
 function setupJog() {
   for (const b of document.querySelectorAll(".jogbtn")) {
-    let timer = null;
-    const rate = () => +$("jog-speed").value * +b.dataset.dir;
-    const press = async (ev) => {
-      ev.preventDefault();
-      if (timer) return;
-      b.classList.add("held");
-      const send = () => put(`/jog/${b.dataset.axis}`, { rate_deg_s: rate() }).catch((e) => { stop(); toast(e.message, true); });
-      send();
-      timer = setInterval(send, 150);
-    };
-    const stop = () => {
-      if (!timer) return;
-      clearInterval(timer); timer = null;
-      b.classList.remove("held");
-      del(`/jog/${b.dataset.axis}`).catch(() => {});
-    };
-    b.addEventListener("pointerdown", press);
-    b.addEventListener("pointerup", stop);
-    b.addEventListener("pointerleave", stop);
-    b.addEventListener("pointercancel", stop);
+    const axis = b.dataset.axis, dir = +b.dataset.dir;
+    b.addEventListener("pointerdown", (ev) => { ev.preventDefault(); jogPress(axis, dir, b); });
+    for (const up of ["pointerup", "pointerleave", "pointercancel"]) b.addEventListener(up, () => jogRelease(axis, dir, b));
   }
+  const onLive = () => !$("page-live").hidden && !["INPUT", "SELECT", "TEXTAREA"].includes(document.activeElement?.tagName);
+  const btn = (axis, dir) => document.querySelector(`.jogbtn[data-axis="${axis}"][data-dir="${dir}"]`);
+  document.addEventListener("keydown", (ev) => {
+    const a = ARROWS[ev.key];
+    if (!a || !onLive() || ev.repeat) return;
+    ev.preventDefault();
+    jogPress(a[0], a[1], btn(a[0], a[1]));
+  });
+  document.addEventListener("keyup", (ev) => {
+    const a = ARROWS[ev.key];
+    if (a) jogRelease(a[0], a[1], btn(a[0], a[1]));
+  });
+  window.addEventListener("blur", () => { for (const k of Object.keys(ARROWS)) jogRelease(ARROWS[k][0], ARROWS[k][1], btn(ARROWS[k][0], ARROWS[k][1])); });
 }
 
 async function loadPresets() {

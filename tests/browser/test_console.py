@@ -64,6 +64,23 @@ def test_angles_move_and_pointing_agrees_with_status_and_3d_view(page, server: S
     box = page.locator("#point-field").bounding_box()
     page.mouse.click(box["x"] + box["width"] * 0.25, box["y"] + box["height"] * 0.5)
     page.wait_for_function("parseFloat(document.getElementById('pan-tgt').textContent) > 30", timeout=T)
+    # holding an arrow key jogs (press/release); the target stops moving after the release
+    page.wait_for_function(
+        "Math.abs(parseFloat(document.getElementById('pan-val').textContent)"
+        " - parseFloat(document.getElementById('pan-tgt').textContent)) < 0.5",
+        timeout=T,
+    )
+    before = float(page.text_content("#pan-tgt"))
+    page.locator("#pause").focus()
+    page.keyboard.down("ArrowLeft")
+    page.wait_for_function(
+        f"parseFloat(document.getElementById('pan-tgt').textContent) > {before} + 3", timeout=T
+    )
+    page.keyboard.up("ArrowLeft")
+    page.wait_for_timeout(1000)  # release plus the engine's auto-stop window
+    held = float(page.text_content("#pan-tgt"))
+    page.wait_for_timeout(500)
+    assert float(page.text_content("#pan-tgt")) == pytest.approx(held, abs=0.05)
     page.click("#release")
 
 
