@@ -297,7 +297,11 @@ def _robust_covariance(
 
 
 def _central_jacobian(
-    fun: Callable[[FloatArray], FloatArray], x: FloatArray, lower: FloatArray, upper: FloatArray, f0: FloatArray
+    fun: Callable[[FloatArray], FloatArray],
+    x: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    f0: FloatArray,
 ) -> FloatArray:
     """Jacobian of ``fun`` at ``x`` by central differences of ±STDERR_STEP (one-sided at a bound)."""
     jac = np.empty((f0.size, x.size))

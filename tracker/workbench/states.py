@@ -233,9 +233,7 @@ def _pick_bandwidth(y: FloatArray, dt_s: float, jump: FloatArray) -> float:
     return float(cands[int(np.argmax(lls))])
 
 
-def command_acceleration(
-    xs: FloatArray, u_v: FloatArray, dt_s: float
-) -> tuple[float, int]:
+def command_acceleration(xs: FloatArray, u_v: FloatArray, dt_s: float) -> tuple[float, int]:
     """How the acceleration follows the command: (gain K/J in units of ``xs`` per volt, lag in samples).
 
     Least squares of α on [u(t − d), ω, sign ω, 1] over moving samples for lags d up to
@@ -303,7 +301,9 @@ def hold_runs(theta_rad: FloatArray, min_samples: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True) if b - a >= min_samples]
 
 
-def _anchor_at_holds(y: FloatArray, xs: FloatArray, dt: float, q: float, holds: list[tuple[int, int]]) -> None:
+def _anchor_at_holds(
+    y: FloatArray, xs: FloatArray, dt: float, q: float, holds: list[tuple[int, int]]
+) -> None:
     """Make the smoothed states (in place, noise units) respect holds: at rest inside them, and
     each motion between holds smoothed from rest (forward) and to rest (time-reversed), blended.
 
