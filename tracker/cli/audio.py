@@ -29,6 +29,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help=f"localizer (default {DEFAULT_LOCALIZER})")
     locate.add_argument("--window-s", type=float, default=0.5, help="analysis window (s)")
     locate.add_argument("--hop-s", type=float, default=0.1, help="window hop (s)")
+    locate.add_argument("--fine-window-s", type=float, default=1.5,
+                        help="longer window that refines the tracked talker (s); 0 turns it off")
     locate.add_argument("--front-only", action="store_true",
                         help="search only -90°..90° azimuth (array on a wall or under a camera)")
     locate.add_argument("--json", action="store_true", help="print the JSON contract")
@@ -48,7 +50,9 @@ def run_locate(args: argparse.Namespace) -> int:
     options = {"azimuth_range_rad": (-np.pi / 2, np.pi / 2)} if args.front_only else {}
     if args.method in ("seed_rms", "gcc_phat"):
         options = {}
-    pipeline = Pipeline(array, fs_hz, args.method, WindowSettings(args.window_s, args.hop_s),
+    fine_s = args.fine_window_s if args.fine_window_s and args.fine_window_s > 0 else None
+    pipeline = Pipeline(array, fs_hz, args.method,
+                        WindowSettings(args.window_s, args.hop_s, fine_s),
                         localizer_options=options)
     result = pipeline.run(audio)
     if args.json:
