@@ -318,7 +318,9 @@ def _anchor_at_holds(
     # Each motion segment takes in a margin of the holds around it: the take-off happens
     # somewhere before the count first changes, and the smoother must be free to put it there.
     margin = [min(ANCHOR_MARGIN, (b - a) // 2) for a, b in holds]
-    bounds = [(None, holds[0][0] + margin[0])] if holds and holds[0][0] > 0 else []
+    bounds: list[tuple[int | None, int | None]] = []
+    if holds and holds[0][0] > 0:
+        bounds.append((None, holds[0][0] + margin[0]))
     bounds += [(holds[i][1] - margin[i], holds[i + 1][0] + margin[i + 1]) for i in range(len(holds) - 1)]
     if holds and holds[-1][1] < n:
         bounds.append((holds[-1][1] - margin[-1], None))
