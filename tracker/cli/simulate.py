@@ -19,7 +19,13 @@ def register(subparsers: Any) -> None:
         help="run the pointing test (steps, ramps, 1 Hz sine) on the digital twin, or a meeting",
         description="Scripted pointing test on the twin: per-axis margins, step and sine figures.",
     )
-    p.add_argument("scenario", nargs="?", default="pointing", choices=("pointing", "meeting"))
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        default="pointing",
+        choices=("pointing", "meeting"),
+        help="pointing: steps, ramps, 1 Hz sine per axis (default); meeting: the audio-steered meeting",
+    )
     p.add_argument("--axis", choices=("pan", "tilt"), help="one axis only (default: both)")
     p.add_argument(
         "--duration",
@@ -32,9 +38,21 @@ def register(subparsers: Any) -> None:
         "--effects", default="", metavar="A,B", help="hidden effects added to the twin (catalogue defaults)"
     )
     p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="EFFECT.PARAM=VALUE",
+        help="set a hidden effect's parameter (SI units), e.g. gravity.torque=0.03; repeatable",
+    )
+    p.add_argument(
         "--rig-config", default=None, metavar="FILE.json", help="hidden effects per axis (rig config file)"
     )
-    p.add_argument("--controller", default=DEFAULT_CONTROLLER, choices=sorted(CONTROLLERS))
+    p.add_argument(
+        "--controller",
+        default=DEFAULT_CONTROLLER,
+        choices=sorted(CONTROLLERS),
+        help="seed_lead: the seed's reproduced lead; observer_pd_ff: ours (default)",
+    )
     p.add_argument(
         "--record", default=None, metavar="FILE.csv", help="write the run as a t,u,theta log (one per axis)"
     )
@@ -53,15 +71,21 @@ def run(args: argparse.Namespace) -> int:
     from tracker.recording import write_measurements
 
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
+    params = _parse_params(args.param)
+    for name in params:
+        effect = name.split(".")[0]
+        if effect not in effects and effect not in ("inertia", "viscous", "coulomb", "quantization"):
+            effects.append(effect)
+    if args.rig_config and (effects or params):
+        raise ConfigError("give hidden effects either with --rig-config or with --effects/--param, not both")
     rig = load_rig_config(args.rig_config) if args.rig_config else None
     axes = [args.axis] if args.axis else ["pan", "tilt"]
     duration = SCRIPT_S if args.duration is None else args.duration
     out: dict[str, Any] = {}
     logs = {}
     for axis in axes:
-        res = run_pointing(
-            axis, duration, args.controller, twin_for(axis, effects, rig), record=bool(args.record)
-        )
+        twin = twin_for(axis, effects, rig, params)
+        res = run_pointing(axis, duration, args.controller, twin, record=bool(args.record))
         out[axis] = res.figures
         if res.measurement is not None:
             logs[axis] = res.measurement
@@ -76,6 +100,19 @@ def run(args: argparse.Namespace) -> int:
             for k, v in fig.items():
                 print(f"  {k:40s} {v}")
     return 0
+
+
+def _parse_params(items: list[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"--param {item!r}: expected EFFECT.PARAM=NUMBER") from None
+        if not sep:
+            raise ConfigError(f"--param {item!r}: expected EFFECT.PARAM=NUMBER")
+    return out
 
 
 def _run_meeting(args: argparse.Namespace) -> int:

@@ -32,11 +32,17 @@ class AxisRun:
     measurement: Measurement | None
 
 
-def twin_for(axis: str, effects: Iterable[str] = (), rig: Mapping[str, AxisModel] | None = None) -> AxisModel:
-    """The rig's twin of ``axis``: the seed preset + encoder quantization + ``effects`` (or ``rig``'s)."""
+def twin_for(
+    axis: str,
+    effects: Iterable[str] = (),
+    rig: Mapping[str, AxisModel] | None = None,
+    params: Mapping[str, float] | None = None,
+) -> AxisModel:
+    """The rig's twin of ``axis``: the seed preset + encoder quantization + ``effects`` with
+    ``params`` (SI), or ``rig``'s twin when given."""
     if rig is not None:
         return rig[axis]
-    return AxisModel.for_axis(axis, ["quantization", *effects])
+    return AxisModel.for_axis(axis, ["quantization", *effects], dict(params or {}))
 
 
 def run_pointing(

@@ -39,3 +39,18 @@ def test_simulate_refuses_a_duration_shorter_than_the_script(capsys: pytest.Capt
 def test_simulate_refuses_an_unknown_effect(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["simulate", "--axis", "pan", "--effects", "warp"]) == 2
     assert "unknown effect 'warp'" in capsys.readouterr().err
+
+
+def test_param_reaches_the_twin(capsys: pytest.CaptureFixture[str]) -> None:
+    """Regression: --param was parsed but not passed on, so gravity stayed at its 0 default."""
+    figures = []
+    for extra in ([], ["--param", "gravity.torque=0.05"]):
+        assert main(["simulate", "--axis", "tilt", "--json", *extra]) == 0
+        figures.append(json.loads(capsys.readouterr().out)["tilt"])
+    assert "gravity" in figures[1]["twin_effects"]
+    assert figures[1]["sine_1hz_peak_error_percent"] > 1.5 * figures[0]["sine_1hz_peak_error_percent"]
+
+
+def test_param_must_be_name_equals_number(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["simulate", "--param", "gravity.torque"]) == 2
+    assert "EFFECT.PARAM=NUMBER" in capsys.readouterr().err
