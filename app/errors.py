@@ -50,7 +50,7 @@ def check_axis(axis: str) -> str:
     return axis
 
 
-STATUS_BY_ERROR: tuple[tuple[type[BaseException], int], ...] = (
+STATUS_BY_ERROR: tuple[tuple[type[Exception], int], ...] = (
     (NotFound, 404),
     (Conflict, 409),
     (ConfigError, 422),

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -13,6 +13,7 @@ from tracker.plant.model import AxisModel
 from tracker.workbench.data import Measurement, parse_log
 
 MAX_PLOT_POINTS = 1500
+T = TypeVar("T")
 
 
 def model_to_json(model: AxisModel, axis: str) -> dict[str, Any]:
@@ -71,16 +72,17 @@ def series_deg(t_s: np.ndarray, **arrays_rad: np.ndarray) -> dict[str, list[floa
     return out
 
 
-def plain(value: Any) -> Any:
+def plain(value: T) -> T:
     """JSON-ready copy (numpy arrays/scalars to lists/floats, non-finite floats to None)."""
+    out: Any = value
     if isinstance(value, dict):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return plain(value.tolist())
-    if isinstance(value, np.generic):
-        return plain(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+        out = {str(k): plain(v) for k, v in value.items()}
+    elif isinstance(value, list | tuple):
+        out = [plain(v) for v in value]
+    elif isinstance(value, np.ndarray):
+        out = plain(value.tolist())
+    elif isinstance(value, np.generic):
+        out = plain(value.item())
+    elif isinstance(value, float) and not math.isfinite(value):
+        out = None
+    return out  # type: ignore[no-any-return]

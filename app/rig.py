@@ -101,7 +101,8 @@ def run_friction_id(driver: Any, axis: str, progress: Any, cancel: Any) -> dict[
     from tracker.workbench import friction_id
 
     result = friction_id.run_friction_id(driver, axis=axis, progress=progress, cancel=cancel)
-    return result.to_dict() if hasattr(result, "to_dict") else dict(result)
+    out: dict[str, Any] = result.to_dict()
+    return out
 
 
 def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:

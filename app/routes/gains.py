@@ -21,7 +21,7 @@ from app.service import Service, Svc
 router = APIRouter(tags=["gains"])
 
 
-def _plain(value: Any) -> Any:
+def _plain(value: Any) -> Any:  # noqa: ANN401 - any result object in, JSON-ready value out
     """JSON-ready copy of a result object (dataclass, numpy values, nested containers)."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
@@ -55,7 +55,7 @@ def margins_of(svc: Service, axis: str, gains: Any) -> dict[str, Any]:
     from tracker.control.design import check_gains
 
     report = check_gains(rig.axis_model(svc.engine, axis), gains, svc.settings.min_phase_margin_deg)
-    out = _plain(report)
+    out: dict[str, Any] = _plain(report)
     floor = svc.settings.min_phase_margin_deg
     pm = out.get("phase_margin_deg")
     out["acceptable"] = bool(out.get("stable")) and pm is not None and pm >= floor
@@ -67,7 +67,7 @@ def step_of(svc: Service, axis: str, gains: Any, amplitude_deg: float, duration_
     res = rig.step_response(svc.engine, axis, gains, math.radians(amplitude_deg), duration_s)
     t, y = res.pop("t_s"), res.pop("angle_rad")
     step = max(1, len(t) // 400)
-    return _plain(
+    out: dict[str, Any] = _plain(
         {
             **res,
             "t_s": t[::step].round(5),
@@ -75,6 +75,7 @@ def step_of(svc: Service, axis: str, gains: Any, amplitude_deg: float, duration_
             "amplitude_deg": amplitude_deg,
         }
     )
+    return out
 
 
 @router.get(
@@ -84,8 +85,8 @@ async def get_gains(axis: str, svc: Svc, who: Viewer) -> GainsOut:
     check_axis(axis)
     gains = svc.engine.gains(axis)
     return GainsOut(
-        axis=axis,
-        gains=_plain(gains) | {"type": type(gains).__name__},  # type: ignore[arg-type]
+        axis=axis,  # type: ignore[arg-type]  # checked by check_axis
+        gains=_plain(gains) | {"type": type(gains).__name__},
         margins=margins_of(svc, axis, gains),
         min_phase_margin_deg=svc.settings.min_phase_margin_deg,
     )
@@ -128,8 +129,8 @@ async def put_gains(axis: str, body: GainsIn, svc: Svc, who: Engineer) -> GainsO
     svc.engine.set_gains(axis, cand)
     gains = svc.engine.gains(axis)
     return GainsOut(
-        axis=axis,
-        gains=_plain(gains) | {"type": type(gains).__name__},  # type: ignore[arg-type]
+        axis=axis,  # type: ignore[arg-type]  # checked by check_axis
+        gains=_plain(gains) | {"type": type(gains).__name__},
         margins=margins_of(svc, axis, gains),
         min_phase_margin_deg=floor,
     )

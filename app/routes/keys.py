@@ -27,7 +27,7 @@ async def whoami(svc: Svc, who: Viewer) -> dict[str, Any]:
 @router.get("/keys", response_model=list[KeyOut], summary="List keys (hashes are never shown)")
 async def list_keys(svc: Svc, who: Admin) -> list[KeyOut]:
     return [
-        KeyOut(id=k.id, name=k.name, role=k.role, prefix=k.prefix, revoked=k.revoked)
+        KeyOut(id=k.id, name=k.name, role=k.role, prefix=k.prefix, revoked=k.revoked, key=None)
         for k in svc.db.list_keys()
     ]
 

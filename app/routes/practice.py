@@ -64,7 +64,7 @@ async def get_practice(svc: Svc, who: Viewer) -> dict[str, Any]:
 async def new_practice(body: PracticeNewIn, svc: Svc, who: Engineer) -> dict[str, Any]:
     seed = body.seed if body.seed is not None else secrets.randbelow(2**31)
     truth = rig.random_practice_model(body.axis, seed)
-    st = {
+    st: dict[str, Any] = {
         "axis": body.axis,
         "seed": seed,
         "truth": model_to_json(truth, body.axis),

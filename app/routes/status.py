@@ -57,4 +57,4 @@ async def health(svc: Svc) -> dict[str, Any]:
 
 def audio_state(svc: Service) -> str:
     """ "off", "ready", "preparing ...", or why audio is unavailable."""
-    return svc.audio_note or (getattr(svc.audio, "note", "on") if svc.audio is not None else "off")
+    return str(svc.audio_note or (getattr(svc.audio, "note", "on") if svc.audio is not None else "off"))
