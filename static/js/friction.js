@@ -41,7 +41,7 @@ async function poll() {
   try {
     const j = await get(`/jobs/${jobId}`);
     $("fric-bar").style.width = `${(100 * j.progress).toFixed(0)}%`;
-    $("fric-status").textContent = `Job ${j.id}: ${j.state} · ${(100 * j.progress).toFixed(0)} %${j.message ? ` · ${j.message}` : ""}`;
+    $("fric-status").textContent = `Job ${j.id}: ${j.state} · ${(100 * j.progress).toFixed(0)} %${j.message && j.message !== j.state ? ` · ${j.message}` : ""}`;
     if (["done", "failed", "cancelled"].includes(j.state)) {
       clearInterval(timer);
       $("fric-cancel").disabled = true;
@@ -55,6 +55,9 @@ function showResult(r) {
   const v = r.plot.velocity_rad_s, tq = r.plot.torque_nm;
   const order = v.map((_, i) => i).sort((a, b) => v[a] - v[b]);
   const vs = order.map((i) => v[i]), ts = order.map((i) => tq[i]);
+  // Break the lines at rest: Coulomb friction jumps there, nothing was measured in between.
+  const cut = vs.findIndex((w) => w > 0);
+  if (cut > 0) { vs.splice(cut, 0, 0); ts.splice(cut, 0, null); }
   const pos = r.positive, neg = r.negative;
   // Each direction's line, torque = viscous·ω ± Coulomb, drawn over the measured velocities.
   const fitted = vs.map((w) => (w > 0 ? pos.coulomb_nm + pos.viscous_nm_s_per_rad * w
