@@ -25,6 +25,7 @@ from tracker.targets import Target
 log = logging.getLogger("app.audio")
 FloatArray = NDArray[np.float64]
 CACHE_VERSION = 1
+ARRAYS_DIR = Path(__file__).resolve().parent.parent / "examples" / "arrays"
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,10 +85,10 @@ def track_meeting(seed: int = 1, duration_s: float = 60.0) -> TrackTable:
     """Simulate the meeting and run localizer + tracker over it (seconds to a minute of CPU)."""
     from tracker.audio.array import load_array
     from tracker.audio.pipeline import Pipeline
-    from tracker.scenarios.meeting import _ARRAYS_DIR, MeetingSettings, build_meeting
+    from tracker.scenarios.meeting import MeetingSettings, build_meeting
 
     settings = MeetingSettings()
-    array = load_array(_ARRAYS_DIR / settings.array_file)
+    array = load_array(ARRAYS_DIR / settings.array_file)
     recording, _ = build_meeting(seed, duration_s, settings, array)
     pipeline = Pipeline(
         array,

@@ -59,3 +59,19 @@ def test_cache_round_trip(tmp_path: Path) -> None:
     np.testing.assert_array_equal(back.target_az_rad, table().target_az_rad)
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     assert TrackTable.load(tmp_path / "bad.npz") is None
+
+
+def test_the_engine_follows_the_meeting_source() -> None:
+    import asyncio
+
+    from tracker.drivers.sim import SimDriver
+    from tracker.engine import Engine
+
+    engine = Engine(SimDriver())
+    engine.set_target_source(MeetingSource(table()))
+    engine.set_tracking(True)
+    asyncio.run(engine.run(realtime=False, duration_s=4.0))  # the last window says -0.2 rad
+    st = engine.status()
+    assert st.mode == "tracking" and st.active_talker == f"talker at {math.degrees(-0.2):+.0f}°"
+    assert st.pan_rad == pytest.approx(-0.2, abs=0.01)
+    assert st.tilt_rad == pytest.approx(0.0, abs=0.01)
