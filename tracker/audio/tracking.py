@@ -6,8 +6,13 @@ returns the direction the camera should point at. The policy imitates a good ope
 * only the more confident half of the speech frames count (confidence above the running
   ``confidence_quantile`` of the last ``confidence_window_s``): in a reverberant room the
   low-confidence windows are the ones dominated by reflections;
-* a direction must persist for ``reaction_time_s`` before the camera goes there (a single
-  wrong estimate, a cough or a reflection does not move it);
+* a direction must persist for ``reaction_time_s`` (at least three frames) before the camera
+  goes there, and when a long window is supplied it must point there too (a single wrong
+  estimate, a cough or a burst of reflections does not move the camera);
+* the current talker's Kalman filter (constant velocity) takes the long window's estimate
+  (precise, but lagging a walker, so trusted less the faster the talker moves) and the short
+  window's (quick, noisy) when they fall inside the gate; estimates outside it are evidence
+  for up to three candidate talkers;
 * after a switch the camera stays at least ``min_hold_s`` unless the floor was silent for
   longer than ``pause_tolerance_s`` (then the next talker is taken as soon as confirmed);
 * pauses shorter than ``pause_tolerance_s`` keep a talker's claim to the floor;

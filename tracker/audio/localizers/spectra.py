@@ -105,12 +105,15 @@ def snr_weights(spectra: ComplexArray, noise_quantile: float = 0.1) -> FloatArra
     return np.asarray(np.clip(1.0 - noise / (power.mean(axis=0) + 1e-30), 0.0, 1.0))
 
 
-def onset_weights(spectra: ComplexArray, power: float = 2.0) -> FloatArray:
-    """Per time-frequency weight ``clip(1 - P(t-1, f) / P(t, f), 0, 1) ** power``.
+def onset_weights(spectra: ComplexArray, power: float = 2.0, noise_quantile: float = 0.1
+                  ) -> FloatArray:
+    """Per time-frequency weight: rising power, above the noise.
 
-    Bins whose power is rising hold the start of a sound, which reaches the array by the
-    direct path before its reflections do (the precedence effect); bins in a decaying tail are
-    mostly reverberation and get little weight.
+    ``clip(1 - P(t-1, f) / P(t, f), 0, 1) ** power * clip(1 - N(f) / P(t, f), 0, 1)``:
+    bins whose power is rising hold the start of a sound, which reaches the array by the
+    direct path before its reflections do (the precedence effect); bins in a decaying tail
+    are mostly reverberation. The second factor (``N`` a low quantile of the bin's power over
+    the window) keeps noise-only bins, whose power also rises at random, from voting.
 
     Parameters
     ----------
@@ -122,7 +125,9 @@ def onset_weights(spectra: ComplexArray, power: float = 2.0) -> FloatArray:
     """
     p = np.mean(np.abs(spectra) ** 2, axis=0)
     previous = np.concatenate([p[:1], p[:-1]], axis=0)
-    return np.asarray(np.clip(1.0 - previous / (p + 1e-30), 0.0, 1.0) ** power)
+    rising = np.clip(1.0 - previous / (p + 1e-30), 0.0, 1.0) ** power
+    noise = np.quantile(p, noise_quantile, axis=0)
+    return np.asarray(rising * np.clip(1.0 - noise[None, :] / (p + 1e-30), 0.0, 1.0))
 
 
 def phat(cross: ComplexArray, mask: NDArray[np.bool_], beta: float = 1.0) -> ComplexArray:
