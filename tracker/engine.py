@@ -84,6 +84,8 @@ class Engine:
 
     def __init__(self, driver: MotorDriver, config: EngineConfig | None = None) -> None:
         self._driver = driver
+        # The compiled fast path, if the driver has one (decided once: Protocol checks are slow).
+        self._fast: ClosedLoopDriver | None = driver if isinstance(driver, ClosedLoopDriver) else None
         self.config = config or EngineConfig()
         self._dt = driver.sample_period_s
         self._n_chunk = max(1, int(round(self.config.chunk_s / self._dt)))
@@ -297,9 +299,9 @@ class Engine:
         targets = self._chunk_targets(n)
         t_chunk = self._t + np.arange(n, dtype=np.float64) * self._dt
         records: dict[str, np.ndarray] = {}
-        if isinstance(self._driver, ClosedLoopDriver) and hasattr(self._driver, "run_closed_loop"):
+        if self._fast is not None:
             for a, ax in self._axes.items():
-                records[a] = self._driver.run_closed_loop(a, ax.cp, ax.cs, targets[a])
+                records[a] = self._fast.run_closed_loop(a, ax.cp, ax.cs, targets[a])
         else:
             records = self._run_per_sample(targets, n)
         for a, ax in self._axes.items():
