@@ -165,7 +165,7 @@ def diagnose(
     ]
     step(0.7)
     rank(rows)
-    refine_leaders(rows, judge, base_score, sig.dt_s, step, cancel)
+    refine_leaders(rows, judge, base_score, ctx, step, cancel)
     rank(rows)
 
     significant = [r.effect for r in rows if r.significant]
