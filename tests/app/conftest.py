@@ -50,9 +50,9 @@ def make_rig(tmp: Path, viewer: bool = False) -> Iterator[Rig]:
         yield Rig(client, tmp, keys)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
-    """One running service shared by the app tests (the 3D view on a free loopback port)."""
+    """One running service shared by the app tests, stopped after the last of them."""
     yield from make_rig(tmp_path_factory.mktemp("data"), viewer=True)
 
 
