@@ -30,17 +30,20 @@ async function load() {
     current = g;
     $("tune-type").textContent = `${g.gains.type} · phase-margin floor ${g.min_phase_margin_deg}°`;
     $("gain-form").innerHTML = Object.entries(g.gains).filter(([k]) => k !== "type").map(([k, v]) =>
-      `<label for="g-${k}">${esc(k)}</label><input id="g-${k}" data-name="${esc(k)}" type="number" step="any" value="${v}">`).join("");
+      `<label for="g-${k}">${esc(k)}</label><input id="g-${k}" data-name="${esc(k)}" type="number" step="any"
+        value="${shown(v)}" data-shown="${shown(v)}">`).join("");
     showMargins(g.margins, g.min_phase_margin_deg);
     await preview();
   } catch (e) { $("tune-error").textContent = e.message; }
 }
 
+const shown = (v) => String(Number(Number(v).toPrecision(6)));
+
+// Only the fields a person edited (the form shows 6 significant digits of the exact values).
 function changes() {
   const out = {};
   for (const inp of $("gain-form").querySelectorAll("input")) {
-    const v = Number(inp.value);
-    if (inp.value !== "" && v !== current.gains[inp.dataset.name]) out[inp.dataset.name] = v;
+    if (inp.value !== "" && inp.value !== inp.dataset.shown) out[inp.dataset.name] = Number(inp.value);
   }
   return out;
 }
