@@ -278,6 +278,12 @@ def held_out_search(judge: KStepJudge, base: KStepScore, models: Sequence[AxisMo
     return HeldOutSearch(models[best], best, float(np.mean(gains)), (gains[0], gains[1]))
 
 
+def _with(model: AxisModel, values: dict[str, float]) -> AxisModel:
+    """``model`` with ``values`` set and every other value kept (``AxisModel.with_params``
+    resets an existing asymmetry to symmetric unless its value is among the updates)."""
+    return AxisModel.create(model.gain_nm_per_v, {}, model.effects, {**model.params, **values})
+
+
 def refine(
     judge: KStepJudge,
     model: AxisModel,
@@ -311,7 +317,7 @@ def refine(
     def resid(z: FloatArray) -> FloatArray:
         if cancel is not None and cancel():
             raise JobCancelled("diagnosis cancelled while refitting a candidate")
-        m = model.with_params(wrap(z * scale))
+        m = _with(model, wrap(z * scale))
         return judge.errors(m)[:, judge.k_settle + 1 :: 3].ravel()
 
     sol = optimize.least_squares(
@@ -323,7 +329,7 @@ def refine(
         diff_step=1e-3,
         method="trf",
     )
-    fitted = model.with_params(wrap(sol.x * scale))
+    fitted = _with(model, wrap(sol.x * scale))
     # Standard errors: Gauss–Newton covariance, inflated by the residual's correlation length
     # (errors within a prediction window are far from independent).
     r = sol.fun

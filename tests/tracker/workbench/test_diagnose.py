@@ -113,3 +113,16 @@ def test_ripple_evidence_names_the_cycles_per_revolution() -> None:
 def test_stiction_and_delay_ambiguity_is_noted_with_the_experiment() -> None:
     _, d = _diagnose(("stiction",), SEEDS["stiction"])
     assert any("stiction and delay" in n and "friction-id" in n for n in d.notes)
+
+
+def test_refit_keeps_an_asymmetry_it_does_not_fit() -> None:
+    # Regression: AxisModel.with_params reset coulomb_asymmetry.negative to coulomb.torque when
+    # the refit did not include it, silently undoing an earlier round of the diagnosis.
+    from tracker.workbench.idim import prepare_signals
+    from tracker.workbench.kstep import KStepJudge, refine
+
+    _, meas = hidden_case(("delay",), SEEDS["delay"])
+    model = AxisModel.for_axis("pan", ["coulomb_asymmetry", "delay"], {"coulomb_asymmetry.negative": 0.07})
+    judge = KStepJudge(meas, prepare_signals(meas))
+    fitted, _ = refine(judge, model, ["delay.seconds"], max_evals=5)
+    assert fitted.params["coulomb_asymmetry.negative"] == 0.07
