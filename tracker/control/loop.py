@@ -6,9 +6,11 @@ and returns the command uₖ (V), held over [tₖ, tₖ₊₁):
 1. clamp the target into the soft limits and shape it (rate/acceleration limits) into a
    reference r, r', r'' (:mod:`tracker.control.trajectory`);
 2. correct the observer with yₖ (:mod:`tracker.control.observer`): θ̂, ω̂;
-3. law "observer_pd_ff": u = (J r'' + b r' + Fc·s)/K + Kp (r − θ̂) + Kd (r' − ω̂) + Ki ∫(r − θ̂)
-   − g·(d̂/K + Fc·s/K) (the observer's residual disturbance torque, cancelled by a fraction g),
-   with s = tanh(v/v_band) the smoothed friction sign, v = r' while the reference moves and the
+3. law "observer_pd_ff": u = (J r'' + b r' + τ_static(r) + Fc·s)/K + Kp (r − θ̂) + Kd (r' − ω̂)
+   + Ki ∫(r − θ̂) − g·(d̂/K + Fc·s/K), where τ_static is the model's offset and gravity
+   T·sin(r + φ) (zero unless a fitted model has them), g the fraction of the observer's
+   residual disturbance torque d̂ cancelled (0 by default),
+   s = tanh(v/v_band) the smoothed friction sign, v = r' while the reference moves and the
    *observed* velocity ω̂ otherwise; the integrator stops while the command is saturated and its
    share is capped (anti-windup);
    law "seed_lead": u = C(z)(r − y), the seed's first-order lead on the raw encoder error;
@@ -67,7 +69,8 @@ C_GA, C_GB, C_GL = 42, 51, 54  # the guard's own observer (fixed bandwidth, not 
 C_KJ = 57  # K/J, rad/s² per V, for the guard's worst case
 C_DOB, C_INVK = 58, 59  # disturbance compensation gain, 1/K (V per N·m)
 C_ADAPT = 60  # Coulomb adaptation rate (1/s)
-N_CP = 61
+C_OFF, C_GT, C_GPH = 61, 62, 63  # the model's static torques, in V: offset, gravity amplitude, phase
+N_CP = 64
 # Adapt only while reference and axis both move faster than this many friction bands.
 ADAPT_BANDS = 5.0
 # Adapted Coulomb stays within [0, ADAPT_MAX_FACTOR × the model's].
@@ -122,6 +125,10 @@ def pack_controller(
         cp[C_FF] = gains.feedforward
         cp[C_DOB] = gains.disturbance_comp
         cp[C_ADAPT] = gains.friction_adapt_per_s
+        # Static torques the model knows (a fitted model may have them; the seed's has none).
+        cp[C_OFF] = p.get("offset.torque", 0.0) / k
+        cp[C_GT] = p.get("gravity.torque", 0.0) / k
+        cp[C_GPH] = p.get("gravity.phase", 0.0)
         cp[C_FJ] = p["inertia.J"] / k
         cp[C_FB] = p["viscous.b"] / k
         cp[C_FCP] = p["coulomb.torque"] / k
@@ -246,7 +253,8 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
                 cs[S_FCP] = min(max(cs[S_FCP] - cp[C_ADAPT] * dt * resid, 0.0), ADAPT_MAX_FACTOR * cp[C_FCP])
             else:
                 cs[S_FCN] = min(max(cs[S_FCN] + cp[C_ADAPT] * dt * resid, 0.0), ADAPT_MAX_FACTOR * cp[C_FCN])
-        u_ff = cp[C_FF] * (cp[C_FJ] * ref_a + cp[C_FB] * ref_v) + u_fric
+        u_static = cp[C_OFF] + cp[C_GT] * math.sin(ref_p + cp[C_GPH])
+        u_ff = cp[C_FF] * (cp[C_FJ] * ref_a + cp[C_FB] * ref_v + u_static) + u_fric
         u_i = cp[C_KI] * cs[S_INT]
         # Disturbance compensation: cancel what the observer's torque estimate says the
         # friction feedforward has not already cancelled, capped like the integrator.
