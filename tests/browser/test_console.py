@@ -116,3 +116,20 @@ def test_upload_diagnose_add_effect_and_the_error_falls(page, server: Server, tm
     assert rms[1] < 0.5 * rms[0]
     assert page.locator("#version-list li").count() == 2
     assert page.locator("#plot-versions canvas").count() == 1
+
+
+def test_gain_tuning_previews_margins_and_blocks_unsafe_gains(page, server: Server) -> None:  # type: ignore[no-untyped-def]
+    page.click('#tabs button[data-tab="tuning"]')
+    page.wait_for_selector("#g-kd_v_s_per_rad", timeout=T)
+    page.wait_for_function("document.querySelector('#margins .metric') !== null", timeout=T)
+    assert "safe to apply" in page.text_content("#margins")
+    assert page.locator("#plot-step canvas").count() == 1
+    kd = float(page.input_value("#g-kd_v_s_per_rad"))
+    page.fill("#g-kd_v_s_per_rad", str(kd * 0.05))
+    page.click("#tune-preview")
+    page.wait_for_function(
+        "document.getElementById('margins').textContent.includes('would be refused')", timeout=T
+    )
+    assert page.is_disabled("#tune-apply")
+    before = server.api("GET", "/axes/pan/gains").json()["gains"]
+    assert before["kd_v_s_per_rad"] == pytest.approx(kd, rel=1e-5)
