@@ -135,7 +135,7 @@ def screen_missing_effects(
             )
             out[effect] = screen(effect, design, model, base, base_reg, st, 2, {"velocity": vs}, reg)
         elif effect == "delay":
-            grid = np.arange(0.0, MAX_DELAY_S + 1e-9, max(sig.dt_s, 0.001))
+            grid = np.arange(0.0, MAX_DELAY_S + 1e-9, max(sig.dt_s, 0.002))
             st, reg, d = _refine_1d(
                 design, lambda v: base.plus("delay", **{"delay.seconds": v}), grid, ne, log=False
             )

@@ -148,7 +148,10 @@ def judge_candidate(
     score = judge.score(cand)
     # Another missing effect can bias the regression's J, b, Fc (a delay shrinks the apparent
     # inertia): also try the effect alone on the base model's values, keep the better.
-    for variant in (_effect_only(scr), _centred(scr, base_model)):
+    variants = [_effect_only(scr)]
+    if scr.effect in ("coulomb_asymmetry", "viscous_asymmetry"):
+        variants.append(_centred(scr, base_model))
+    for variant in variants:
         other = _candidate_model(base_model, variant, ctx)
         other_score = judge.score(other)
         if other_score.sse < score.sse:

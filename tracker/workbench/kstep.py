@@ -43,7 +43,7 @@ from tracker.workbench.idim import Signals
 FloatArray = NDArray[np.float64]
 DEFAULT_HORIZON_S = 0.03  # as tracker.workbench.compare
 TRIM_BLOCKS = 2  # blocks left out of the robust improvement
-BACKLASH_STARTS = 9  # places in the dead band tried at each window start
+BACKLASH_STARTS = 5  # places in the dead band tried at each window start
 
 
 @njit(cache=True)
@@ -206,7 +206,7 @@ class KStepJudge:
         half = 0.5 * model.params["backlash.width"]
         offsets = np.linspace(-half, half, BACKLASH_STARTS)
         speed = float(np.percentile(np.abs(self.omega_s), 90)) or 1.0
-        vrels = speed * np.array([-0.3, -0.1, -0.03, 0.0, 0.03, 0.1, 0.3])
+        vrels = speed * np.array([-0.1, 0.0, 0.1])
         P = pack_params(model, self.dt, quantize=False)
         return _shoot_windows(
             P, self.u, self.dt, self.starts, self.k + 1, self.k_settle, x0, self.y, offsets, vrels
