@@ -2,7 +2,8 @@
 
 Only a SHA-256 hash of each key is stored (keys are 256-bit random tokens, so a fast hash is
 enough; nothing to brute-force). The first start creates an admin key and writes it, mode 0600,
-to the data folder. Missing or unknown key → 401; a known key whose role is too low → 403.
+to the data folder. Missing or unknown key → :class:`Unauthorized` (401); a known key whose
+role is too low → :class:`Forbidden` (403); app/errors.py maps them.
 """
 
 from __future__ import annotations
@@ -17,10 +18,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Request, WebSocket
+from fastapi import Depends, Request, WebSocket
 from fastapi.security import APIKeyHeader
 
 from app.db import Database
+from app.errors import Forbidden, Unauthorized
 
 KEY_HEADER = "X-API-Key"
 KEY_PREFIX = "3dat_"
@@ -115,11 +117,9 @@ def require(role: Role) -> Callable[..., Principal]:
         who = lookup(request.app.state.db, key)
         if who is None:
             detail = "missing API key" if not key else "unknown or revoked API key"
-            raise HTTPException(
-                401, detail=f"{detail} (header {KEY_HEADER})", headers={"WWW-Authenticate": KEY_HEADER}
-            )
+            raise Unauthorized(f"{detail} (header {KEY_HEADER})")
         if who.role < role:
-            raise HTTPException(403, detail=f"role {who.role.name} may not do this; needs {role.name}")
+            raise Forbidden(f"role {who.role.name} may not do this; needs {role.name}")
         return who
 
     dependency.__name__ = f"require_{role.name}"

@@ -3,7 +3,8 @@
 ConfigError → 422 (out-of-range angle, unstable gains: the message names the limit),
 DataError → 400 (malformed upload: the message names the line and column),
 DriverFault → 503, JobCancelled → 409, unknown axis / resource → 404 (:class:`NotFound`),
-manual control held by someone else → 409 (:class:`Conflict`), auth → 401/403 (raised in auth.py).
+manual control held by someone else → 409 (:class:`Conflict`), missing/unknown key → 401
+(:class:`Unauthorized`), role too low → 403 (:class:`Forbidden`).
 Bodies are ``{"detail": str, "error": <class name>, ...extra}``.
 """
 
@@ -32,6 +33,14 @@ class Conflict(RuntimeError):
         self.extra = extra
 
 
+class Unauthorized(PermissionError):
+    """No API key, or one that is unknown or revoked."""
+
+
+class Forbidden(PermissionError):
+    """The key's role is below what the request needs."""
+
+
 class Refused(ConfigError):
     """A ConfigError carrying numbers for the client (computed margins, the limit)."""
 
@@ -51,6 +60,8 @@ def check_axis(axis: str) -> str:
 
 
 STATUS_BY_ERROR: tuple[tuple[type[Exception], int], ...] = (
+    (Unauthorized, 401),
+    (Forbidden, 403),
     (NotFound, 404),
     (Conflict, 409),
     (ConfigError, 422),
@@ -84,7 +95,8 @@ def install(app: FastAPI) -> None:
         if status >= 500 and not isinstance(exc, DriverFault):
             log.exception("unhandled error on %s %s", request.method, request.url.path)
             return JSONResponse({"detail": "internal error", "error": type(exc).__name__}, status_code=500)
-        return JSONResponse(error_body(exc), status_code=status)
+        headers = {"WWW-Authenticate": "X-API-Key"} if status == 401 else None
+        return JSONResponse(error_body(exc), status_code=status, headers=headers)
 
     for cls, _ in STATUS_BY_ERROR:
         app.add_exception_handler(cls, handle)

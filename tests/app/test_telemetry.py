@@ -8,7 +8,7 @@ import time
 import pytest
 from starlette.websockets import WebSocketDisconnect
 
-from app.errors import status_for
+from app.errors import Conflict, Forbidden, NotFound, Unauthorized, status_for
 from app.telemetry import TelemetryHub
 from tracker.errors import ConfigError, DataError, DriverFault, JobCancelled
 
@@ -95,9 +95,13 @@ def test_hub_decimates_to_its_rate_and_drops_oldest_for_slow_clients() -> None:
         (DataError("x"), 400),
         (DriverFault("x"), 503),
         (JobCancelled("x"), 409),
+        (Unauthorized("x"), 401),
+        (Forbidden("x"), 403),
+        (NotFound("x"), 404),
+        (Conflict("x"), 409),
         (RuntimeError("x"), 500),
     ],
-    ids=["config", "data", "driver", "cancelled", "unknown"],
+    ids=["config", "data", "driver", "cancelled", "401", "403", "404", "409", "unknown"],
 )
 def test_one_place_maps_engine_errors_to_http(exc: Exception, status: int) -> None:
     assert status_for(exc) == status
