@@ -57,7 +57,9 @@ COARSE_DIFF_STEP = 2e-2
 MIN_CLUSTER_S = 0.25
 MIN_CLUSTERS = 12
 # Parameter pairs more correlated than this are reported as not separable.
-CORRELATION_WARNING = 0.995
+CORRELATION_WARNING = 0.95
+# ... and at least one of the pair is uncertain by more than this fraction of its value.
+UNCERTAIN_FRACTION = 0.1
 # Components fitted instead of (amplitude, phase).
 _POLAR = {"gravity": ("gravity.torque", "gravity.phase"), "ripple": ("ripple.amplitude", "ripple.phase")}
 
@@ -241,6 +243,21 @@ class _Coords:
             out[amp_k] = float(math.sqrt(max(g_amp @ sub @ g_amp, 0.0)))
             out[ph_k] = float(math.sqrt(max(g_ph @ sub @ g_ph, 0.0)))
         return out
+
+
+def _poorly_separated(
+    pairs: tuple[tuple[str, str, float], ...], stderr: Mapping[str, float], model: AxisModel
+) -> tuple[tuple[str, str, float], ...]:
+    """The correlated pairs where the correlation costs precision (a relative standard error
+    above UNCERTAIN_FRACTION): strongly correlated but sharp estimates are no cause for alarm."""
+
+    def uncertain(name: str) -> bool:
+        key = _POLAR[name][0] if name in _POLAR else name
+        value = abs(model.params.get(key, 0.0))
+        se = stderr.get(key, 0.0)
+        return value == 0.0 or se > UNCERTAIN_FRACTION * value
+
+    return tuple(p for p in pairs if uncertain(p[0]) or uncertain(p[1]))
 
 
 def _torque_scale(model: AxisModel) -> float:
@@ -489,7 +506,7 @@ def fit_model(
         model0,
         start.id_error_percent,
         t0,
-        coords.correlated(cov),
+        _poorly_separated(coords.correlated(cov), stderr, fitted),
     )
 
 

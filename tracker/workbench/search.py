@@ -39,8 +39,8 @@ STRIBECK_GRID = (0.02, 0.05, 0.1, 0.2, 0.4)  # × the 95th-percentile speed
 SATURATION_GRID = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)  # × max |u|
 # Backlash widths: 1 to 300 encoder counts, ratio 1.25 (the cost has a basin about ±20 % wide).
 BACKLASH_GRID_COUNTS = tuple(float(x) for x in np.geomspace(1.0, 300.0, 26))
-# Belt resonance: ratio 1.05 (the k-step cost's basin is only about ±10 % wide).
-COMPLIANCE_GRID_HZ = tuple(float(x) for x in np.geomspace(0.5, 300.0, 132))
+# Belt resonance: ratio 1.1 (the k-step cost's basin is only about ±10 % wide), then FINE_GRID.
+COMPLIANCE_GRID_HZ = tuple(float(x) for x in np.geomspace(0.5, 300.0, 68))
 FINE_GRID = tuple(float(x) for x in np.linspace(0.88, 1.12, 13))
 COMPLIANCE_DAMPING_GRID = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8)
 # Low-pass of the rigid-body inverse dynamics for two-mass models (Hz).
@@ -214,6 +214,8 @@ def search_start(
         m_id = grid_on_prediction(
             meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k
         )
+        f0 = m_id.params["compliance.frequency"]
+        m_id = grid_on_prediction(meas, est, m_id, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
         if "compliance.damping" in free:
             m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
     # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
