@@ -18,6 +18,7 @@ import asyncio
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -195,14 +196,15 @@ class Engine:
         """The model the controller of ``axis`` is designed on."""
         return self._axis(axis).model
 
-    def set_model(self, axis: str, model: AxisModel) -> ControllerDesign:
+    def set_model(self, axis: str, model: AxisModel, **options: Any) -> ControllerDesign:
         """Redesign ``axis``'s controller on ``model`` (e.g. one the workbench fitted) and use it.
 
-        The limits, shaping and controller name stay; refused (ConfigError with the margins)
-        like :meth:`set_gains` when the new design misses the phase-margin floor.
+        ``options`` go to the design (e.g. ``crossover_hz=17.0``). The limits, shaping and
+        controller name stay; refused (ConfigError with the margins) like :meth:`set_gains`
+        when the new design misses the phase-margin floor.
         """
         ax = self._axis(axis)
-        design = design_controller(model, self.config.controller, axis=axis)
+        design = design_controller(model, self.config.controller, axis=axis, **options)
         if not design.report.ok or design.report.phase_margin_deg < self.config.min_phase_margin_deg:
             raise ConfigError(f"{axis} redesign refused: {design.report.describe()}")
         ax.model = model

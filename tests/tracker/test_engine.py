@@ -239,3 +239,5 @@ def test_redesign_on_a_fitted_model_changes_the_gains_and_keeps_margins() -> Non
     assert design.report.phase_margin_deg >= 45.0
     # Twice the inertia, same bandwidth: about twice the stiffness.
     assert e.gains("tilt").kp_v_per_rad == pytest.approx(2.05 * before.kp_v_per_rad, rel=0.05)  # type: ignore[union-attr]
+    faster = e.set_model("tilt", heavier, crossover_hz=16.0)
+    assert faster.report.crossover_hz == pytest.approx(16.0, rel=0.05)
