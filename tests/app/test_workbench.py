@@ -4,6 +4,8 @@ compare, diagnose a hidden effect, add it and watch the error fall; the practice
 from __future__ import annotations
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from tracker.workbench.data import format_log
 from tracker.workbench.experiments import generate_measurement, random_hidden_model
@@ -164,3 +166,31 @@ def test_experiment_scripts_stay_inside_the_travel(kind: str) -> None:
     assert ref.shape == (20000,)
     assert np.all(np.abs(ref) <= 0.6 * 1.5 + 1e-12)
     assert np.ptp(ref) > 0.3  # it does excite the axis
+
+
+_csv_cell = st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr), st.text(max_size=6))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    header=st.sampled_from(["t,u,theta", "t,u", "theta,u,t,x", "", "t;u;theta"]),
+    rows=st.lists(st.lists(_csv_cell, min_size=0, max_size=4), max_size=30),
+)
+def test_any_garbage_upload_is_refused_cleanly(rig: Rig, header: str, rows: list[list[str]]) -> None:
+    text = header + "\n" + "\n".join(",".join(r) for r in rows)
+    before = rig.client.get(f"{API}/measurements", headers=rig.h("viewer")).json()
+    r = upload(rig, text, name="fuzz.csv")
+    assert r.status_code == 400, r.text  # never 500; under 200 rows can never be a valid log
+    assert "detail" in r.json()
+    assert rig.client.get(f"{API}/measurements", headers=rig.h("viewer")).json() == before
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(pan=st.floats(allow_nan=False, allow_infinity=False, width=64), tilt=st.floats(-1e6, 1e6))
+def test_any_pointing_request_is_answered_without_error(rig: Rig, pan: float, tilt: float) -> None:
+    r = rig.client.put("/api/v1/pointing", headers=rig.h("engineer"), json={"pan_deg": pan, "tilt_deg": tilt})
+    inside = abs(pan) <= 90 and abs(tilt) <= 45
+    assert r.status_code == (200 if inside else 422), r.text
+    if not inside:
+        assert r.json()["limit_deg"] in (90.0, 45.0)
+    rig.client.delete("/api/v1/pointing", headers=rig.h("engineer"))
