@@ -32,6 +32,7 @@ MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but 
 MIN_DELAY_SAMPLES = 0.5
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 PARSIMONY_PER_PARAM = 0.02
+OVERWHELMING_P = 1e-10
 MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
 BELT_FREQUENCIES_HZ = (3.0, 4.5, 6.5, 9.0, 12.0, 16.0, 22.0, 30.0, 42.0, 60.0)
 BELT_DAMPINGS = (0.05, 0.15, 0.4)
@@ -189,7 +190,7 @@ def judge_candidate(
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
         screen_ok = min(search.gains) >= MIN_HELD_OUT_GAIN
-    significant = screen_ok and _kstep_ok(effect, cmp)
+    significant = screen_ok and _kstep_ok(effect, cmp, scr.p_value)
     if effect == "backlash":
         significant = _backlash_significant(scr, screens, cmp, ctx.sig.encoder_step_rad)
     elif not screen_ok and two_mass and effect in TORQUE_EFFECTS and cmp.improvement > 0:
@@ -269,16 +270,18 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     return True
 
 
-def _kstep_ok(effect: str, cmp: Comparison) -> bool:
+def _kstep_ok(effect: str, cmp: Comparison, screen_p: float = 1.0) -> bool:
     """The simulation agrees with the screening.
 
     Torque effects are measured best by the torque regression (a small viscous asymmetry
-    barely moves a 30 ms prediction): the simulation must only agree in direction. Effects
-    that act through the command or a hidden state are where inverse dynamics can be fooled
-    (a clip level or a belt fitted to noise), so they must win by a margin.
+    barely moves a 30 ms prediction, and only in the few fast moves of one direction): the
+    simulation must agree in direction, also without its two best blocks unless the regression's
+    evidence is overwhelming. Effects that act through the command or a hidden state are where
+    inverse dynamics can be fooled (a clip level or a belt fitted to noise): they must win by a
+    margin.
     """
     if effect in TORQUE_EFFECTS:
-        return cmp.improvement > 0.0 and cmp.robust_improvement > 0.0
+        return cmp.improvement > 0.0 and (cmp.robust_improvement > 0.0 or screen_p <= OVERWHELMING_P)
     return cmp.improvement >= MIN_KSTEP_GAIN and cmp.robust_improvement >= MIN_KSTEP_ROBUST
 
 
