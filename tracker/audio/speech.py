@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import io
 import shutil
 import subprocess
+import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -154,13 +155,16 @@ def espeak_speech(duration_s: float, fs_hz: int = 16000, seed: int = 0) -> Speec
     voice = ["en+m1", "en+f2", "en+m3", "en+f4", "en-us+m2"][seed % 5]
     speed = str(int(rng.uniform(140, 175)))
     order = rng.permutation(len(_SENTENCES))
-    text = " ".join(_SENTENCES[k] for k in np.resize(order, 12))
-    try:
-        result = subprocess.run([program, "-v", voice, "-s", speed, "--stdout", text],
-                                capture_output=True, check=True, timeout=60)
-    except (OSError, subprocess.SubprocessError) as exc:
-        raise DriverFault(f"espeak-ng failed: {exc}") from exc
-    rate, data = wavfile.read(io.BytesIO(result.stdout))
+    n_sentences = max(1, min(12, int(duration_s / 3.0) + 1))  # about 3 s per sentence
+    text = " ".join(_SENTENCES[k] for k in np.resize(order, n_sentences))
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "speech.wav"  # a file: --stdout leaves the WAV length unset
+        try:
+            subprocess.run([program, "-v", voice, "-s", speed, "-w", str(path), text],
+                           capture_output=True, check=True, timeout=60)
+            rate, data = wavfile.read(path)
+        except (OSError, ValueError, subprocess.SubprocessError) as exc:
+            raise DriverFault(f"espeak-ng failed: {exc}") from exc
     mono = data.astype(float) / 32768.0
     if rate != fs_hz:
         g = np.gcd(int(rate), int(fs_hz))
