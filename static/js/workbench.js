@@ -10,7 +10,7 @@ let busy = false;
 
 export function init(s) {
   session = s;
-  makeChart($("plot-overlay"), { height: 230, xLabel: "time (s)", yLabel: "θ °", series: [line("measured", C.actual, { width: 2.4 }), line("model (k-step prediction)", C.target, { dash: [5, 3], width: 1.4 })] });
+  makeChart($("plot-overlay"), { height: 230, xLabel: "time (s)", yLabel: "θ °", series: [line("measured", C.actual, { width: 2.4 }), line("model", C.target, { dash: [5, 3], width: 1.4 })] });
   makeChart($("plot-residual"), { height: 140, xLabel: "time (s)", yLabel: "residual °", series: [line("residual", "#6f42c1")] });
   makeChart($("plot-acf"), { height: 150, yLabel: "autocorr.", xLabel: "lag (s)",
     series: [line("residual autocorrelation", C.actual), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });
@@ -33,6 +33,7 @@ export function init(s) {
   $("upload-form").addEventListener("submit", upload);
   $("wb-diagnose").addEventListener("click", () => diagnose());
   $("wb-fit").addEventListener("click", refit);
+  $("wb-mode").addEventListener("change", () => { if (selected) compare(shownVersion).catch((e) => { $("wb-error").textContent = e.message; }); });
 }
 
 export function show() { loadList(); }
@@ -90,8 +91,12 @@ async function loadVersions() {
   for (const li of document.querySelectorAll("#version-list li")) li.onclick = () => compare(+li.dataset.vid);
 }
 
+let shownVersion = null;
 async function compare(versionId) {
-  const m = await post(`/workbench/measurements/${selected}/compare`, versionId ? { version_id: versionId } : {});
+  shownVersion = versionId || null;
+  const body = { mode: $("wb-mode").value };
+  if (versionId) body.version_id = versionId;
+  const m = await post(`/workbench/measurements/${selected}/compare`, body);
   const n = versions.findIndex((v) => v.id === m.version_id) + 1;
   $("wb-title").textContent = `Measurement #${selected} vs ${m.version_label} (v${n})`;
   for (const li of document.querySelectorAll("#version-list li")) li.classList.toggle("selected", +li.dataset.vid === m.version_id);
