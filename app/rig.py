@@ -54,6 +54,8 @@ def axis_model(engine: Any, axis: str) -> Any:
     """The plant model the engine designed ``axis``' controller on."""
     from tracker.plant.model import AxisModel
 
+    if hasattr(engine, "model"):
+        return engine.model(axis)
     models = getattr(getattr(engine, "config", None), "models", None) or {}
     return models.get(axis) or AxisModel.for_axis(axis)
 

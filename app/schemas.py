@@ -92,6 +92,10 @@ class StepPreviewIn(Strict):
     duration_s: float = Field(1.5, gt=0, le=10, allow_inf_nan=False)
 
 
+class DesignModelIn(Strict):
+    version_id: int = Field(description="a workbench model version of this axis")
+
+
 class KeyIn(Strict):
     name: str = Field(pattern=NAME_PATTERN)
     role: Literal["viewer", "operator", "engineer", "admin"]

@@ -14,9 +14,11 @@ from fastapi import APIRouter
 
 from app import rig
 from app.auth import Engineer, Viewer
-from app.errors import Refused, check_axis
-from app.schemas import GainsIn, GainsOut, StepPreviewIn
+from app.errors import NotFound, Refused, check_axis
+from app.modelio import model_from_json
+from app.schemas import DesignModelIn, GainsIn, GainsOut, StepPreviewIn
 from app.service import Service, Svc
+from tracker.errors import ConfigError
 
 router = APIRouter(tags=["gains"])
 
@@ -133,4 +135,29 @@ async def put_gains(axis: str, body: GainsIn, svc: Svc, who: Engineer) -> GainsO
         gains=_plain(gains) | {"type": type(gains).__name__},
         margins=margins_of(svc, axis, gains),
         min_phase_margin_deg=floor,
+    )
+
+
+@router.put(
+    "/axes/{axis}/model",
+    response_model=GainsOut,
+    summary="Redesign the axis controller on a workbench model version (422 with margins when refused)",
+)
+async def put_model(axis: str, body: DesignModelIn, svc: Svc, who: Engineer) -> GainsOut:
+    check_axis(axis)
+    version = svc.db.get_version(body.version_id)
+    if version is None:
+        raise NotFound(f"no model version {body.version_id}")
+    if version["model"]["axis"] != axis:
+        raise Refused(f"version {body.version_id} models the {version['model']['axis']} axis, not {axis}")
+    try:
+        svc.engine.set_model(axis, model_from_json(version["model"]))
+    except ConfigError as exc:
+        raise Refused(str(exc)) from None
+    gains = svc.engine.gains(axis)
+    return GainsOut(
+        axis=axis,  # type: ignore[arg-type]  # checked by check_axis
+        gains=_plain(gains) | {"type": type(gains).__name__},
+        margins=margins_of(svc, axis, gains),
+        min_phase_margin_deg=svc.settings.min_phase_margin_deg,
     )

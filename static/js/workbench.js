@@ -1,6 +1,6 @@
 // Workbench page: measurements, model vs measurement, residuals, error by regime, diagnosis
 // cards with "add effect", and the fit by model version.
-import { $, api, esc, fmt, get, post, toast } from "./api.js";
+import { $, api, esc, fmt, get, post, put, toast } from "./api.js";
 import { C, bars, line, makeChart, setData, watchSize } from "./charts.js";
 
 let session;
@@ -33,6 +33,7 @@ export function init(s) {
   $("upload-form").addEventListener("submit", upload);
   $("wb-diagnose").addEventListener("click", () => diagnose());
   $("wb-fit").addEventListener("click", refit);
+  $("wb-design").addEventListener("click", designOnModel);
   $("wb-mode").addEventListener("change", () => { if (selected) compare(shownVersion).catch((e) => { $("wb-error").textContent = e.message; }); });
 }
 
@@ -43,7 +44,7 @@ export async function selectMeasurement(id) {
   for (const li of document.querySelectorAll("#meas-list li")) li.classList.toggle("selected", +li.dataset.id === id);
   $("diag-cards").innerHTML = ""; $("diag-notes").innerHTML = ""; $("wb-verdict").textContent = ""; $("wb-error").textContent = "";
   const canEdit = session.can("engineer");
-  $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit;
+  $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit; $("wb-design").disabled = !canEdit;
   await loadVersions();
   await compare();
 }
@@ -177,4 +178,14 @@ async function refit() {
     await compare();
   } catch (e) { $("wb-error").textContent = e.message; }
   finally { setBusy(false); }
+}
+
+async function designOnModel() {
+  const v = versions.find((x) => x.id === shownVersion) || versions[versions.length - 1];
+  if (!v) return;
+  $("wb-error").textContent = "";
+  try {
+    const g = await put(`/axes/${v.model.axis}/model`, { version_id: v.id });
+    toast(`${v.model.axis} controller redesigned on ${v.label}: phase margin ${fmt(g.margins.phase_margin_deg)}°`);
+  } catch (e) { $("wb-error").textContent = e.message; }
 }

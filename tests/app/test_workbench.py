@@ -128,6 +128,34 @@ def test_the_loop_finds_the_hidden_offset_and_the_error_falls(rig: Rig, offset_c
     )
 
 
+def test_the_controller_can_be_redesigned_on_a_fitted_version(rig: Rig, offset_csv: str) -> None:
+    mid = upload(rig, offset_csv, name="for-design.csv").json()["id"]
+    version = rig.client.get(f"{API}/measurements/{mid}/versions", headers=rig.h("viewer")).json()[-1]
+    r = rig.client.put(
+        "/api/v1/axes/pan/model", headers=rig.h("engineer"), json={"version_id": version["id"]}
+    )
+    assert r.status_code == 200, r.text
+    assert r.json()["margins"]["acceptable"] is True
+    assert (
+        rig.client.put(
+            "/api/v1/axes/tilt/model", headers=rig.h("engineer"), json={"version_id": version["id"]}
+        ).status_code
+        == 422
+    )  # a pan model
+    assert (
+        rig.client.put(
+            "/api/v1/axes/pan/model", headers=rig.h("engineer"), json={"version_id": 987654}
+        ).status_code
+        == 404
+    )
+    assert (
+        rig.client.put(
+            "/api/v1/axes/pan/model", headers=rig.h("operator"), json={"version_id": version["id"]}
+        ).status_code
+        == 403
+    )
+
+
 def test_practice_rig_keeps_its_secret_until_revealed(rig: Rig) -> None:
     h = rig.h("engineer")
     r = rig.client.post("/api/v1/practice", headers=h, json={"axis": "pan", "seed": 7})
