@@ -105,10 +105,10 @@ def _json(obj: Any) -> str:
 
 
 def _header(meas: Measurement, model: AxisModel) -> str:
-    effects = " + ".join(model.effects) if model.effects else "base"
+    effects = "".join(f" + {e}" for e in model.effects)
     return (
         f"{meas.source}: {meas.n} samples, {meas.t_s[-1] - meas.t_s[0]:.2f} s at {meas.dt_s * 1e3:.3g} ms; "
-        f"model: base + {effects} (K = {model.gain_nm_per_v:.6g})"
+        f"model: base{effects} (K = {model.gain_nm_per_v:.6g})"
     )
 
 

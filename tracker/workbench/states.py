@@ -116,6 +116,8 @@ def measurement_noise_rad(theta_rad: FloatArray) -> float:
     return sigma
 
 
+# No known acceleration jumps. Compiled functions take every argument explicitly: numba keys
+# its on-disk cache by argument types, and an omitted default recompiles in every process.
 _NO_JUMP = np.zeros(0)
 
 # The filter's covariances converge long before this many samples (the model is time
@@ -125,7 +127,7 @@ CONVERGED_AFTER = 800
 
 @njit(cache=True)
 def _covariances(
-    n: int, dt: float, r: float, q: float, at_rest: bool = False
+    n: int, dt: float, r: float, q: float, at_rest: bool
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Predicted/filtered covariances for the first min(n, CONVERGED_AFTER) steps, and F.
 
@@ -192,7 +194,7 @@ def _forward(
 
 @njit(cache=True)
 def _rts_ca(
-    y: FloatArray, dt: float, r: float, q: float, at_rest: bool = False, jump: FloatArray = _NO_JUMP
+    y: FloatArray, dt: float, r: float, q: float, at_rest: bool, jump: FloatArray
 ) -> tuple[FloatArray, float]:
     """RTS smoother, constant acceleration, white jerk of intensity q (plus known acceleration
     jumps). Returns (n, 3), loglik."""
@@ -214,7 +216,7 @@ def _rts_ca(
 
 def _filter_loglik(y: FloatArray, dt: float, r: float, q: float, jump: FloatArray = _NO_JUMP) -> float:
     """Forward Kalman filter log-likelihood only (bandwidth selection)."""
-    Pp, _, F = _covariances(y.shape[0], dt, r, q)
+    Pp, _, F = _covariances(y.shape[0], dt, r, q, False)
     return float(_forward(y, r, Pp, F, jump)[2])
 
 
@@ -275,7 +277,7 @@ def smooth_kinematics(
     y = (y_raw - offset) / sigma
     jump = _NO_JUMP
     bw = _pick_bandwidth(y, dt_s, jump) if bandwidth_hz is None else bandwidth_hz
-    xs, _ = _rts_ca(y, dt_s, 1.0, jerk_intensity(1.0, bw))
+    xs, _ = _rts_ca(y, dt_s, 1.0, jerk_intensity(1.0, bw), False, _NO_JUMP)
     if u_v is not None:
         u = np.asarray(u_v, dtype=float)
         gain, lag = command_acceleration(xs, u, dt_s)
@@ -331,9 +333,9 @@ def _anchor_at_holds(
             continue
         seg = np.ascontiguousarray(y[lo : hi + 1])
         blend = np.linspace(0.0, 1.0, seg.size)[:, None]
-        fwd = _rts_ca(seg, dt, 1.0, q, True)[0] if start is not None else xs[lo : hi + 1].copy()
+        fwd = _rts_ca(seg, dt, 1.0, q, True, _NO_JUMP)[0] if start is not None else xs[lo : hi + 1].copy()
         if stop is not None:
-            bwd = _rts_ca(np.ascontiguousarray(seg[::-1]), dt, 1.0, q, True)[0][::-1].copy()
+            bwd = _rts_ca(np.ascontiguousarray(seg[::-1]), dt, 1.0, q, True, _NO_JUMP)[0][::-1].copy()
             bwd[:, 1] *= -1.0  # time reversal flips velocity, not position or acceleration
         else:
             bwd = xs[lo : hi + 1].copy()

@@ -93,3 +93,19 @@ def test_smoother_learns_how_the_command_moves_the_axis() -> None:
     meas = closed_loop_log(delayed, duration_s=15.0, seed=4)
     xs, _, _ = smooth_kinematics(meas.theta_rad, meas.dt_s)
     assert command_acceleration(xs, meas.u_v, meas.dt_s)[1] * meas.dt_s == pytest.approx(0.012, abs=0.003)
+
+
+def test_compiled_functions_take_no_default_arguments() -> None:
+    """Regression: a numba function called with an omitted default argument got a new cache
+    entry in every process, so every CLI run recompiled the smoother (10 s instead of 1 s)."""
+    import inspect
+
+    from numba.core.registry import CPUDispatcher
+
+    from tracker.workbench import compare, excite, states
+
+    for module in (states, compare, excite):
+        for name, obj in vars(module).items():
+            if isinstance(obj, CPUDispatcher):
+                params = inspect.signature(obj.py_func).parameters.values()
+                assert all(p.default is inspect.Parameter.empty for p in params), f"{module.__name__}.{name}"
