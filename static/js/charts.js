@@ -37,6 +37,15 @@ export function setData(el, data, resetScales = true) {
 
 export function chartOf(el) { return charts.get(el); }
 
+// A y range at least ``span`` wide, so a flat trace sits mid-plot instead of on a 0..100 axis.
+export function minSpan(span) {
+  return (u, mn, mx) => {
+    if (mn === null || mx === null) return [-span / 2, span / 2];
+    const pad = Math.max(0, (span - (mx - mn)) / 2) + 0.05 * (mx - mn);
+    return [mn - pad, mx + pad];
+  };
+}
+
 export function line(label, stroke, extra = {}) {
   return { label, stroke, width: 1.6, points: { show: false }, ...extra };
 }

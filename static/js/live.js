@@ -1,6 +1,6 @@
 // Live page: telemetry plots, status, tracking, click-to-point, jog pad, presets, 3D view.
 import { $, del, esc, fmt, get, post, put, savedKey, toast } from "./api.js";
-import { C, chartOf, line, makeChart, setData, watchSize } from "./charts.js";
+import { C, line, makeChart, minSpan, setData, watchSize } from "./charts.js";
 
 const WINDOW_S = 10;
 const MAX_POINTS = 4000;
@@ -16,8 +16,9 @@ window.console3dat_live = { get lastFrame() { return lastFrame; }, get frames() 
 export function init(s) {
   session = s;
   const panEl = $("plot-pan"), tiltEl = $("plot-tilt");
-  makeChart(panEl, { height: 190, xLabel: "time (s)", yLabel: "pan °", series: [line("pan", C.actual), line("pan target", C.target, { dash: [6, 4] })] });
-  makeChart(tiltEl, { height: 190, xLabel: "time (s)", yLabel: "tilt °", series: [line("tilt", C.actual), line("tilt target", C.target, { dash: [6, 4] })] });
+  const scales = { scales: { x: { time: false }, y: { range: minSpan(4) } } };
+  makeChart(panEl, { height: 190, xLabel: "time (s)", yLabel: "pan °", opts: scales, series: [line("pan", C.actual), line("pan target", C.target, { dash: [6, 4] })] });
+  makeChart(tiltEl, { height: 190, xLabel: "time (s)", yLabel: "tilt °", opts: scales, series: [line("tilt", C.actual), line("tilt target", C.target, { dash: [6, 4] })] });
   watchSize(panEl); watchSize(tiltEl);
   for (const el of [panEl, tiltEl]) el.addEventListener("dblclick", () => { zoomed = false; redraw(true); });
   $("pause").addEventListener("click", () => { paused = !paused; $("pause").textContent = paused ? "Resume" : "Pause"; });
