@@ -34,6 +34,7 @@ from tracker.workbench.judgement import (
     Judged,
     judge_candidate,
     rank,
+    reconsider_backlash,
     refine_leaders,
     with_values,
 )
@@ -164,6 +165,7 @@ def diagnose(
         for scr in screens.values()
     ]
     step(0.7)
+    reconsider_backlash(rows, screens, ctx)
     rank(rows)
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
     rank(rows)

@@ -231,6 +231,18 @@ def refine_leaders(
             r.significant = _kstep_ok(r.effect, r.cmp) and _physical(r.effect, refined, ctx)
 
 
+def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:
+    """A belt that the simulation rejects does not out-explain a dead band (in place)."""
+    by = {r.effect: r for r in rows}
+    bl, belt = by.get("backlash"), by.get("compliance")
+    if bl is None or bl.significant or belt is None or belt.significant:
+        return
+    others = {k: v for k, v in screens.items() if k != "compliance"}
+    bl.significant = _backlash_significant(bl.screen, others, bl.cmp, ctx.sig.encoder_step_rad) and _physical(
+        "backlash", bl.model, ctx
+    )
+
+
 def rank(rows: list[Judged]) -> None:
     """Best first (in place); a bias torque ahead of its equivalent direction-dependent friction."""
     rows.sort(key=Judged.rank_key)
@@ -304,4 +316,12 @@ def _backlash_significant(
     return scr.gain_cv >= MIN_BACKLASH_GAIN and scr.p_value <= MAX_SCREEN_P and beats_belt and wide and sane
 
 
-__all__ = ["TORQUE_EFFECTS", "Judged", "judge_candidate", "rank", "refine_leaders", "with_values"]
+__all__ = [
+    "TORQUE_EFFECTS",
+    "Judged",
+    "judge_candidate",
+    "rank",
+    "reconsider_backlash",
+    "refine_leaders",
+    "with_values",
+]
