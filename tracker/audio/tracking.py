@@ -52,7 +52,7 @@ class TrackerSettings:
     max_rate_rad_s: float = float(np.deg2rad(30.0))
     short_updates_with_fine: bool = True
     gate_rad: float = float(np.deg2rad(10.0))
-    reaction_time_s: float = 0.3
+    reaction_time_s: float = 0.2
     candidate_share: float = 0.6
     min_hold_s: float = 2.0
     pause_tolerance_s: float = 1.5
