@@ -67,17 +67,19 @@ def check_angle(axis: str, angle_deg: float, limit_deg: float) -> None:
 
 
 def step_response(
-    engine: Any, axis: str, gains: Any, amplitude_rad: float, duration_s: float
+    engine: Any, axis: str, gains: Any, amplitude_rad: float, duration_s: float, shaped: bool = True
 ) -> dict[str, Any]:
     """Predicted response of ``axis`` to a step of ``amplitude_rad`` with ``gains``: the engine's
-    full nonlinear loop (shaping, observer, Coulomb, the ±10 V clip) on the axis model.
+    full nonlinear loop (observer, Coulomb, the ±10 V clip) on the axis model, through the
+    engine's trajectory shaping (what the rig does) or without it (the raw step, where the
+    gains show).
 
     Returns t_s, angle_rad (shape (n,)), rise_time_s, overshoot_percent, settling_time_s,
     peak_command_v.
     """
     from tracker.control.design import predicted_step_response
 
-    shaping = (getattr(getattr(engine, "config", None), "shaping", None) or {}).get(axis)
+    shaping = (getattr(getattr(engine, "config", None), "shaping", None) or {}).get(axis) if shaped else None
     res = predicted_step_response(axis_model(engine, axis), gains, amplitude_rad, duration_s, shaping=shaping)
     return {
         "t_s": np.asarray(res.t_s, dtype=float),

@@ -90,6 +90,7 @@ class StepPreviewIn(Strict):
     gains: dict[str, float] = Field(default_factory=dict)
     amplitude_deg: float = Field(30.0, gt=0, le=180, allow_inf_nan=False)
     duration_s: float = Field(1.5, gt=0, le=10, allow_inf_nan=False)
+    shaped: bool = Field(True, description="through the engine's rate/acceleration shaping (as on the rig)")
 
 
 class DesignModelIn(Strict):

@@ -64,9 +64,11 @@ def margins_of(svc: Service, axis: str, gains: Any) -> dict[str, Any]:
     return out
 
 
-def step_of(svc: Service, axis: str, gains: Any, amplitude_deg: float, duration_s: float) -> dict[str, Any]:
+def step_of(
+    svc: Service, axis: str, gains: Any, amplitude_deg: float, duration_s: float, shaped: bool = True
+) -> dict[str, Any]:
     """Predicted step response, as {"t_s": [...], "angle_deg": [...], figures} (decimated)."""
-    res = rig.step_response(svc.engine, axis, gains, math.radians(amplitude_deg), duration_s)
+    res = rig.step_response(svc.engine, axis, gains, math.radians(amplitude_deg), duration_s, shaped)
     t, y = res.pop("t_s"), res.pop("angle_rad")
     step = max(1, len(t) // 400)
     out: dict[str, Any] = _plain(
@@ -106,8 +108,8 @@ async def preview_gains(axis: str, body: StepPreviewIn, svc: Svc, who: Viewer) -
         "axis": axis,
         "gains": _plain(cand),
         "margins": margins_of(svc, axis, cand),
-        "step": step_of(svc, axis, cand, body.amplitude_deg, body.duration_s),
-        "current_step": step_of(svc, axis, current, body.amplitude_deg, body.duration_s),
+        "step": step_of(svc, axis, cand, body.amplitude_deg, body.duration_s, body.shaped),
+        "current_step": step_of(svc, axis, current, body.amplitude_deg, body.duration_s, body.shaped),
         "min_phase_margin_deg": svc.settings.min_phase_margin_deg,
     }
 

@@ -15,6 +15,7 @@ export function init(s) {
   $("tune-preview").addEventListener("click", preview);
   $("tune-apply").addEventListener("click", apply);
   $("tune-reset").addEventListener("click", load);
+  $("tune-step").addEventListener("change", preview);
   $("gain-form").addEventListener("input", () => { previewOk = false; $("tune-apply").disabled = true; });
   $("tune-apply").title = session.can("engineer") ? "" : "needs the engineer role";
 }
@@ -51,11 +52,14 @@ function changes() {
 async function preview() {
   $("tune-error").textContent = "";
   try {
-    const r = await post(`/axes/${axis()}/gains/preview`, { gains: changes(), amplitude_deg: 30, duration_s: 1.5 });
+    const raw = $("tune-step").value === "raw";
+    const amp = raw ? 5 : 30;
+    const r = await post(`/axes/${axis()}/gains/preview`,
+      { gains: changes(), amplitude_deg: amp, duration_s: raw ? 0.6 : 1.5, shaped: !raw });
     const cur = r.current_step, cand = r.step;
     const t = cand.t_s;
     const curY = t.map((_, i) => cur.angle_deg[i] ?? null);
-    setData($("plot-step"), [t, curY, cand.angle_deg, t.map(() => 30)]);
+    setData($("plot-step"), [t, curY, cand.angle_deg, t.map(() => amp)]);
     showMargins(r.margins, r.min_phase_margin_deg, cand);
     previewOk = r.margins.acceptable;
     $("tune-apply").disabled = !previewOk || !session.can("engineer");

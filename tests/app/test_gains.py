@@ -76,3 +76,22 @@ def test_a_safe_change_is_applied(rig: Rig) -> None:
     rig.client.put(
         f"{API}/axes/tilt/gains", headers=rig.h("engineer"), json={"gains": {field: before["gains"][field]}}
     )
+
+
+def test_raw_step_shows_less_damping_as_more_overshoot(rig: Rig) -> None:
+    kd = rig.client.get(f"{API}/axes/pan/gains", headers=rig.h("viewer")).json()["gains"]["kd_v_s_per_rad"]
+    overshoot = []
+    for factor in (1.0, 0.5):
+        r = rig.client.post(
+            f"{API}/axes/pan/gains/preview",
+            headers=rig.h("viewer"),
+            json={
+                "gains": {"kd_v_s_per_rad": kd * factor},
+                "amplitude_deg": 5,
+                "duration_s": 0.6,
+                "shaped": False,
+            },
+        )
+        assert r.status_code == 200, r.text
+        overshoot.append(r.json()["step"]["overshoot_percent"])
+    assert overshoot[1] > overshoot[0] + 5.0
