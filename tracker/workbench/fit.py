@@ -44,6 +44,7 @@ from tracker.workbench.compare import horizon_samples, score_model
 from tracker.workbench.data import Measurement
 from tracker.workbench.search import FINE_GRID, grid_on_prediction, search_start
 from tracker.workbench.states import StateEstimate, estimate_states, with_load_observer
+from tracker.workbench.torques import replace_params
 
 FloatArray = NDArray[np.float64]
 FitMethod = Literal["k_step", "inverse_dynamics"]
@@ -204,8 +205,8 @@ class _Coords:
     def decode(self, model: AxisModel, x: FloatArray) -> AxisModel:
         vals, gain = self.values(x)
         if gain is not None:
-            return AxisModel.create(gain, dict(model.params), model.effects, vals)
-        return model.with_params(vals)
+            return AxisModel.create(gain, {}, model.effects, {**model.params, **vals})
+        return replace_params(model, vals)
 
     def correlated(
         self, cov: FloatArray, threshold: float = CORRELATION_WARNING

@@ -29,7 +29,7 @@ from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.data import Measurement
 from tracker.workbench.states import StateEstimate, encoder_step_rad, with_load_observer
-from tracker.workbench.torques import fit_inverse_dynamics, moving_mask, residual_torque_nm
+from tracker.workbench.torques import fit_inverse_dynamics, moving_mask, replace_params, residual_torque_nm
 
 FloatArray = NDArray[np.float64]
 
@@ -105,7 +105,7 @@ def find_ripple_cycles(meas: Measurement, est: StateEstimate, model: AxisModel) 
         for k in base.free_param_names()
         if k.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
     ]
-    fitted = base.with_params(fit_inverse_dynamics(meas, est, base, free).params)
+    fitted = replace_params(base, fit_inverse_dynamics(meas, est, base, free).params)
     mov = moving_mask(est.omega_rad_s)
     tq = residual_torque_nm(meas, est, fitted)[mov]
     ns, amps = ripple_spectrum(est.theta_rad[mov], tq)
@@ -137,7 +137,7 @@ def _grid_on_id(
     best, best_err = model, math.inf
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
-        cand = model.with_params({name: v})
+        cand = replace_params(model, {name: v})
         err = _id_error(meas, est, cand, free)
         if err < best_err:
             best, best_err = cand, err
@@ -158,7 +158,7 @@ def grid_on_prediction(
     best, best_cost = model, window_cost(meas, est, model, k, stride)
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
-        cand = model.with_params({name: v})
+        cand = replace_params(model, {name: v})
         cost = window_cost(meas, est, cand, k, stride)
         if cost < best_cost:
             best, best_cost = cand, cost
@@ -173,13 +173,13 @@ def search_start(
     if m.has("quantization"):
         q = encoder_step_rad(meas.theta_rad)
         if 0.0 < q <= get_param("quantization.step").upper:
-            m = m.with_params({"quantization.step": q})
+            m = replace_params(m, {"quantization.step": q})
     linear_free = [
         n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
     ]
     linear_free = [n for n in linear_free if n not in ("stiction.velocity", "gravity.phase", "ripple.phase")]
     if m.has("ripple") and "ripple.amplitude" in free:
-        m = m.with_params({"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
+        m = replace_params(m, {"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
     w95 = float(np.percentile(np.abs(est.omega_rad_s), 95)) or 1.0
     umax = float(np.max(np.abs(meas.u_v)))
     try:
@@ -194,12 +194,12 @@ def search_start(
         idf = fit_inverse_dynamics(meas, est, m, linear_free, cutoff_hz=_cutoff_hz(m))
     except ConfigError:
         idf = None
-    m_id = m.with_params({k_: v for k_, v in idf.params.items() if k_ in linear_free}) if idf else m
+    m_id = replace_params(m, {k_: v for k_, v in idf.params.items() if k_ in linear_free}) if idf else m
     if "stiction.static_torque" in free and m_id.has("stiction"):
         # Break-away torque must be at least Coulomb to mean anything (inverse dynamics hardly sees it).
         fc = m_id.params["coulomb.torque"]
         if m_id.params["stiction.static_torque"] < 1.05 * fc:
-            m_id = m_id.with_params({"stiction.static_torque": 1.3 * fc})
+            m_id = replace_params(m_id, {"stiction.static_torque": 1.3 * fc})
     unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
     if "backlash.width" in free:
         m_id = grid_on_prediction(
@@ -219,13 +219,14 @@ def search_start(
         if "compliance.damping" in free:
             m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
     # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
-    own = m.with_params(
+    own = replace_params(
+        m,
         {
             n: m_id.params[n]
             for n in m_id.params
             if n.split(".")[0] in ("delay", "saturation", "backlash", "compliance", "ripple", "quantization")
             or n == "stiction.velocity"
-        }
+        },
     )
     if window_cost(meas, est, own, k) < window_cost(meas, est, m_id, k):
         m_id = own

@@ -12,7 +12,7 @@ torque is what a missing torque effect looks like ("residual torque follows sin 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +32,16 @@ BoolArray = NDArray[np.bool_]
 
 # A sample counts as moving above this fraction of the 95th-percentile speed.
 MOVING_FRACTION = 0.03
+
+
+def replace_params(model: AxisModel, updates: Mapping[str, float]) -> AxisModel:
+    """``model`` with some parameter values replaced, every other value kept.
+
+    ``AxisModel.with_params`` rebuilds through ``create``, which resets an asymmetry's
+    negative-direction value to its positive twin unless it is among the updates; the fitter
+    must never lose a fixed or fitted asymmetry that way.
+    """
+    return AxisModel.create(model.gain_nm_per_v, {}, model.effects, {**model.params, **updates})
 
 
 def effective_command_v(model: AxisModel, u_v: FloatArray, dt_s: float) -> FloatArray:
@@ -159,7 +169,7 @@ def _zero_linear(model: AxisModel, free: Sequence[str]) -> AxisModel:
         "coulomb_asymmetry.negative",
         "stiction.static_torque",
     )
-    return model.with_params({k: 0.0 for k in linear if k in free and k in model.params})
+    return replace_params(model, {k: 0.0 for k in linear if k in free and k in model.params})
 
 
 def _fold_components(params: dict[str, float], effect: str) -> None:
@@ -236,6 +246,7 @@ def fit_inverse_dynamics(
 
 __all__ = [
     "InverseDynamicsFit",
+    "replace_params",
     "effective_command_v",
     "fit_inverse_dynamics",
     "model_torque_nm",

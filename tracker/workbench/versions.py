@@ -84,10 +84,13 @@ class ModelVersion:
         try:
             m = d["model"]
             assert isinstance(m, Mapping)
+            # Stored values go in as overrides: as base values, create() would reset an
+            # asymmetry's negative side to its positive twin (a new asymmetry starts symmetric).
             model = AxisModel.create(
                 float(m["gain_nm_per_v"]),
-                dict(m["params"]),
+                {},
                 tuple(m["effects"]),
+                dict(m["params"]),
             )
             return cls(
                 number=int(d["number"]),  # type: ignore[call-overload]

@@ -136,3 +136,16 @@ def test_inseparable_parameters_are_flagged_not_hidden() -> None:
     pairs = {frozenset(p[:2]) for p in both.correlated}
     assert frozenset({"offset.torque", "coulomb_asymmetry.negative"}) in pairs
     assert any("cannot tell them apart" in w for w in both.warnings)
+
+
+def test_a_fixed_asymmetry_is_kept_while_the_rest_is_refitted() -> None:
+    """Regression: rebuilding models through AxisModel.with_params reset the negative-direction
+    Coulomb torque to the positive one, so a fixed asymmetry was silently lost."""
+    true = AxisModel.for_axis(
+        "pan", ["quantization", "coulomb_asymmetry"], {"coulomb_asymmetry.negative": 0.075}
+    )
+    meas = closed_loop_log(true, duration_s=15.0, seed=12)
+    start = AxisModel.for_axis("pan", ["coulomb_asymmetry"], {"coulomb_asymmetry.negative": 0.075})
+    res = fit_model(meas, start, free=["inertia.J", "viscous.b", "coulomb.torque"])
+    assert res.params["coulomb_asymmetry.negative"] == 0.075
+    _assert_close("coulomb.torque", res.params["coulomb.torque"], 0.052)

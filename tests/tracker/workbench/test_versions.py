@@ -52,3 +52,17 @@ def test_store_rejects_bad_names_and_corrupt_files(tmp_path: Path) -> None:
     with pytest.raises(DataError, match="version 1"):
         store.load("odd")
     assert VersionStore().load("nothing").versions == ()
+
+
+def test_stored_asymmetric_friction_survives_a_round_trip(tmp_path: Path) -> None:
+    """Regression: rebuilding a stored model through create(base_params=...) reset the
+    negative-direction Coulomb torque to the positive one."""
+    from tracker.workbench.versions import ModelVersion, VersionHistory
+
+    model = AxisModel.for_axis("pan", ["coulomb_asymmetry"], {"coulomb_asymmetry.negative": 0.08})
+    v = ModelVersion(1, model, "base+coulomb_asymmetry", 99.0, 95.0, 0.01)
+    store = VersionStore(tmp_path)
+    store.save("asym", VersionHistory((v,)))
+    back = store.load("asym").latest.model
+    assert back.params["coulomb_asymmetry.negative"] == 0.08
+    assert back.params["coulomb.torque"] == model.params["coulomb.torque"]
