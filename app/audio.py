@@ -150,13 +150,22 @@ class MeetingSource:
         )
 
 
+def settings_digest() -> str:
+    """A short digest of the meeting and tracker settings: a cache made with others is not reused."""
+    import hashlib
+
+    from tracker.scenarios.meeting import MeetingSettings
+
+    return hashlib.sha256(f"{CACHE_VERSION}:{MeetingSettings()!r}".encode()).hexdigest()[:10]
+
+
 def start_meeting_source(
     engine: Any, cache_dir: Path, seed: int = 1, duration_s: float = 60.0
 ) -> MeetingSource:
     """Plug a MeetingSource into ``engine`` now; fill it from the cache or a background thread."""
     source = MeetingSource()
     engine.set_target_source(source)
-    cache = cache_dir / f"meeting_seed{seed}_{int(duration_s)}s.npz"
+    cache = cache_dir / f"meeting_seed{seed}_{int(duration_s)}s_{settings_digest()}.npz"
     table = TrackTable.load(cache) if cache.exists() else None
     if table is not None:
         source.table, source.note = table, "ready"
