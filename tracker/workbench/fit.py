@@ -154,7 +154,7 @@ class _Coords:
         p = model.params
         for k in free:
             eff = k.split(".")[0]
-            if eff in _POLAR and k == _POLAR[eff][1]:
+            if eff in _POLAR and k == _POLAR[eff][1] and _POLAR[eff][0] in free:
                 continue  # the phase goes with the amplitude's components
             if eff in _POLAR and k == _POLAR[eff][0]:
                 amp = max(abs(p[k]), 1e-3 * _torque_scale(model))
