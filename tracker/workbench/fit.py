@@ -61,6 +61,8 @@ MIN_CLUSTERS = 12
 CORRELATION_WARNING = 0.95
 # ... and at least one of the pair is uncertain by more than this fraction of its value.
 UNCERTAIN_FRACTION = 0.1
+# Typical magnitudes of parameters that may start at exactly zero (the optimizer's unit step).
+ZERO_START_SCALES = {"gravity.phase": 1.0, "ripple.phase": 1.0, "delay.seconds": 1e-3, "backlash.width": 1e-3}
 # Components fitted instead of (amplitude, phase).
 _POLAR = {"gravity": ("gravity.torque", "gravity.phase"), "ripple": ("ripple.amplitude", "ripple.phase")}
 
@@ -272,6 +274,8 @@ def _param_scale(model: AxisModel, name: str) -> float:
         return v
     if name == "offset.torque":
         return 0.1 * _torque_scale(model)
+    if name in ZERO_START_SCALES:
+        return ZERO_START_SCALES[name]
     prm = get_param(name)
     return max(abs(prm.default), 1e-6 * (prm.upper - prm.lower), 1e-12)
 
