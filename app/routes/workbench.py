@@ -11,7 +11,6 @@ history shows the error falling as effects are added.
 from __future__ import annotations
 
 import asyncio
-import math
 from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, UploadFile
@@ -19,7 +18,7 @@ from fastapi import APIRouter, File, Form, UploadFile
 from app.auth import Engineer, Viewer
 from app.db import Database
 from app.errors import check_axis
-from app.modelio import load_measurement, load_version, model_to_json, plain, series_deg
+from app.modelio import decimate_index, load_measurement, load_version, model_to_json, plain, series_deg
 from app.schemas import AddEffectIn, CompareIn, DiagnoseIn, FitIn
 from app.service import Svc
 from tracker.errors import ConfigError, DataError
@@ -134,10 +133,8 @@ async def list_measurements(svc: Svc, who: Viewer) -> list[dict[str, Any]]:
 async def get_measurement(mid: int, svc: Svc, who: Viewer) -> dict[str, Any]:
     rec, meas = await asyncio.to_thread(load_measurement, svc.db, mid)
     rec.pop("csv")
-    idx = slice(None)
-    data = series_deg(meas.t_s, theta=meas.theta_rad)
-    step = max(1, math.ceil(meas.n / 1500))
-    data["u_v"] = meas.u_v[idx][::step].round(5).tolist()
+    data: dict[str, Any] = series_deg(meas.t_s, theta=meas.theta_rad)
+    data["u_v"] = meas.u_v[decimate_index(meas.n)].round(5).tolist()
     return {**rec, "series": data}
 
 

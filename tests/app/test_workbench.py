@@ -222,3 +222,15 @@ def test_any_pointing_request_is_answered_without_error(rig: Rig, pan: float, ti
     if not inside:
         assert r.json()["limit_deg"] in (90.0, 45.0)
     rig.client.delete("/api/v1/pointing", headers=rig.h("engineer"))
+
+
+def test_measurement_series_and_delete(rig: Rig, offset_csv: str) -> None:
+    mid = upload(rig, offset_csv, name="to-delete.csv").json()["id"]
+    m = rig.client.get(f"{API}/measurements/{mid}", headers=rig.h("viewer")).json()
+    s = m["series"]
+    assert len(s["t_s"]) == len(s["theta_deg"]) == len(s["u_v"]) <= 1500
+    assert m["n"] == 15000 and "csv" not in m
+    assert rig.client.delete(f"{API}/measurements/{mid}", headers=rig.h("operator")).status_code == 403
+    assert rig.client.delete(f"{API}/measurements/{mid}", headers=rig.h("engineer")).status_code == 204
+    assert rig.client.get(f"{API}/measurements/{mid}", headers=rig.h("viewer")).status_code == 404
+    assert rig.client.get(f"{API}/measurements/{mid}/versions", headers=rig.h("viewer")).status_code == 404
