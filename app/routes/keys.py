@@ -7,7 +7,7 @@ from typing import Any
 from fastapi import APIRouter
 
 from app.auth import Admin, Role, Viewer, create_key
-from app.errors import NotFound
+from app.errors import Conflict, NotFound
 from app.schemas import KeyIn, KeyOut
 from app.service import Svc
 
@@ -42,5 +42,10 @@ async def post_key(body: KeyIn, svc: Svc, who: Admin) -> KeyOut:
 
 @router.delete("/keys/{key_id}", status_code=204, summary="Revoke a key")
 async def delete_key(key_id: int, svc: Svc, who: Admin) -> None:
-    if not svc.db.revoke_key(key_id):
+    keys = {k.id: k for k in svc.db.list_keys()}
+    if key_id not in keys:
         raise NotFound(f"no key {key_id}")
+    admins = [k for k in keys.values() if k.role == "admin" and not k.revoked]
+    if keys[key_id].role == "admin" and [k.id for k in admins] == [key_id]:
+        raise Conflict("this is the last active admin key; create another admin key before revoking it")
+    svc.db.revoke_key(key_id)

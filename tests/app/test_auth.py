@@ -84,3 +84,11 @@ def test_lookup_rejects_revoked_keys(tmp_path) -> None:  # type: ignore[no-untyp
     db.revoke_key(key_id)
     assert lookup(db, key) is None
     assert lookup(db, "") is None
+
+
+def test_the_last_admin_key_cannot_be_revoked(rig: Rig) -> None:
+    me = rig.client.get(f"{API}/whoami", headers=rig.h("admin")).json()
+    r = rig.client.delete(f"{API}/keys/{me['key_id']}", headers=rig.h("admin"))
+    assert r.status_code == 409 and "last active admin" in r.json()["detail"]
+    assert rig.client.get(f"{API}/whoami", headers=rig.h("admin")).status_code == 200
+    assert rig.client.delete(f"{API}/keys/99999", headers=rig.h("admin")).status_code == 404
