@@ -54,12 +54,13 @@ class AxisModel:
         for effect_name in (*BASE_EFFECTS, *names):
             for p in CATALOGUE[effect_name].params:
                 values[f"{effect_name}.{p.name}"] = p.default
+        given = {**base_params, **(overrides or {})}
         values.update(base_params)
-        # A newly added asymmetry starts symmetric: same as its positive-direction twin.
-        if "coulomb_asymmetry" in names:
-            values["coulomb_asymmetry.negative"] = values["coulomb.torque"]
-        if "viscous_asymmetry" in names:
-            values["viscous_asymmetry.negative"] = values["viscous.b"]
+        # A newly added asymmetry starts symmetric (same as its positive-direction twin); a value
+        # that is given is kept.
+        for effect, twin in (("coulomb_asymmetry", "coulomb.torque"), ("viscous_asymmetry", "viscous.b")):
+            if effect in names and f"{effect}.negative" not in given:
+                values[f"{effect}.negative"] = values[twin]
         for key, v in (overrides or {}).items():
             if key.split(".")[0] not in (*BASE_EFFECTS, *names):
                 raise ConfigError(f"parameter {key!r} belongs to an effect the model does not have")

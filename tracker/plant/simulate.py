@@ -149,7 +149,7 @@ def _friction_step(omega: float, net: float, J: float, h: float, P: FloatArray) 
     return new
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance(x: FloatArray, P: FloatArray, u: FloatArray, k: int, dt: float, dist_nm: float) -> None:
     """Advance state ``x`` (shape (4,), in place) from t_k to t_{k+1} under command history ``u``.
 

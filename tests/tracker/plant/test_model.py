@@ -63,3 +63,12 @@ def test_adding_an_asymmetry_starts_symmetric_and_removing_an_effect_drops_its_p
     assert m2.effects == ("gravity",)
     assert "coulomb_asymmetry.negative" not in m2.params
     assert set(OPTIONAL_EFFECTS).isdisjoint(BASE_EFFECTS)
+
+
+def test_rebuilding_a_model_keeps_a_fitted_asymmetry() -> None:
+    """Regression: with_params/with_effect reset *_asymmetry.negative to the positive twin."""
+    m = AxisModel.for_axis("pan", ["coulomb_asymmetry", "viscous_asymmetry"],
+                           {"coulomb_asymmetry.negative": 0.07, "viscous_asymmetry.negative": 1.2e-3})
+    for rebuilt in (m.with_params({"viscous.b": 9e-4}), m.with_effect("gravity"), m.without_effect("gravity")):
+        assert rebuilt.params["coulomb_asymmetry.negative"] == 0.07
+        assert rebuilt.params["viscous_asymmetry.negative"] == 1.2e-3
