@@ -7,7 +7,7 @@ from typing import Any
 
 from fastapi import APIRouter
 
-from app.auth import Viewer
+from app.auth import Engineer, Viewer
 from app.schemas import StatusOut
 from app.service import Service, Svc
 
@@ -58,3 +58,14 @@ async def health(svc: Svc) -> dict[str, Any]:
 def audio_state(svc: Service) -> str:
     """ "off", "ready", "preparing ...", or why audio is unavailable."""
     return str(svc.audio_note or (getattr(svc.audio, "note", "on") if svc.audio is not None else "off"))
+
+
+@router.post(
+    "/faults/clear", response_model=StatusOut, summary="Clear latched driver faults and re-enable the drive"
+)
+async def clear_faults(svc: Svc, who: Engineer) -> StatusOut:
+    """503 (DriverFault) when the drive refuses to re-enable."""
+    driver = svc.engine.driver
+    driver.clear_faults()
+    driver.enable()
+    return status_of(svc)

@@ -25,6 +25,9 @@ export function init(s) {
   $("unzoom").addEventListener("click", () => { zoomed = false; redraw(true); });
   for (const el of [panEl, tiltEl]) el.addEventListener("mouseup", () => { zoomed = true; });
   $("tracking-toggle").addEventListener("change", onTracking);
+  $("clear-faults").addEventListener("click", async () => {
+    try { await post("/faults/clear"); toast("Faults cleared, drive enabled"); refreshStatus(); } catch (e) { toast(e.message, true); }
+  });
   $("takeover").addEventListener("click", async () => {
     try { await post("/control?force=true"); toast("You hold manual control"); refreshStatus(); } catch (e) { toast(e.message, true); }
   });
@@ -104,8 +107,9 @@ async function refreshStatus() {
     $("mode").textContent = s.mode;
     $("talker").textContent = s.active_talker || "–";
     $("audio").textContent = s.audio === "ready" ? "simulated meeting (room model → localizer → talker tracker)" : s.audio;
-    $("faults").textContent = s.faults.length ? s.faults.join(", ") : "none";
+    $("faults").firstChild.textContent = s.faults.length ? `${s.faults.join(", ")} ` : "none ";
     $("faults").style.color = s.faults.length ? "var(--bad)" : "";
+    $("clear-faults").hidden = !(s.faults.length && session.can("engineer"));
     $("holder").textContent = s.control_holder ? `${s.control_holder.name} (${s.control_holder.held_s} s)` : "nobody";
     const other = s.control_holder && s.control_holder.name !== session.name;
     $("takeover").hidden = !(other && session.can("engineer"));

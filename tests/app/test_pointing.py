@@ -231,3 +231,14 @@ def test_every_page_asset_is_served_locally(rig: Rig) -> None:
         for ref in refs:
             if ref.startswith("/static/"):
                 assert rig.client.get(ref).status_code == 200, ref
+
+
+def test_a_latched_fault_shows_and_an_engineer_clears_it(rig: Rig) -> None:
+    driver = rig.client.app.state.svc.engine.driver  # type: ignore[attr-defined]
+    driver.latch_fault("test: over-travel on pan")
+    s = poll(lambda: (st := status(rig))["mode"] == "fault" and st, 3.0)
+    assert s and s["faults"] == ["test: over-travel on pan"]
+    assert rig.client.post(f"{API}/faults/clear", headers=rig.h("operator")).status_code == 403
+    r = rig.client.post(f"{API}/faults/clear", headers=rig.h("engineer"))
+    assert r.status_code == 200 and r.json()["faults"] == []
+    assert poll(lambda: status(rig)["mode"] != "fault", 3.0)
