@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.errors import ConfigError
-from tracker.plant.effects import get_param
+from tracker.plant.effects import BASE_EFFECTS, get_param
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.data import Measurement
@@ -194,7 +194,10 @@ def search_start(
         idf = fit_inverse_dynamics(meas, est, m, linear_free, cutoff_hz=_cutoff_hz(m))
     except ConfigError:
         idf = None
-    m_id = replace_params(m, {k_: v for k_, v in idf.params.items() if k_ in linear_free}) if idf else m
+    # Inverse dynamics fits gravity and ripple as (T cos φ, T sin φ): keep the phase it found with
+    # the amplitude (a torque at the wrong phase predicts worse than none at all).
+    from_id = (*linear_free, *(n for n in ("gravity.phase", "ripple.phase") if n in free))
+    m_id = replace_params(m, {k_: v for k_, v in idf.params.items() if k_ in from_id}) if idf else m
     if "stiction.static_torque" in free and m_id.has("stiction"):
         # Break-away torque must be at least Coulomb to mean anything (inverse dynamics hardly sees it).
         fc = m_id.params["coulomb.torque"]
@@ -228,8 +231,14 @@ def search_start(
             or n == "stiction.velocity"
         },
     )
-    if window_cost(meas, est, own, k) < window_cost(meas, est, m_id, k):
-        m_id = own
+    # A third start: the model's base values with the data's values for the added effects.
+    # Inverse dynamics can find an effect well (gravity's torque and phase) while biasing a base
+    # parameter (b from a closed loop); dropping its effect values then would leave the fit at a
+    # degenerate zero (T = 0: no gradient in the phase) from which it never leaves.
+    hybrid = replace_params(
+        own, {n: v for n, v in m_id.params.items() if n.split(".")[0] not in BASE_EFFECTS}
+    )
+    m_id = min((m_id, own, hybrid), key=lambda cand: window_cost(meas, est, cand, k))
     return StartValues(m_id, idf.relative_error_percent if idf else math.nan)
 
 
