@@ -11,6 +11,7 @@ history shows the error falling as effects are added.
 from __future__ import annotations
 
 import asyncio
+import math
 from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, UploadFile
@@ -93,8 +94,17 @@ async def upload(
     file: Annotated[UploadFile, File()],
     axis: Annotated[str, Form()] = "pan",
     name: Annotated[str | None, Form()] = None,
+    gain: Annotated[
+        float | None, Form(description="amplifier gain K override (N·m/V, or N/V linear)")
+    ] = None,
+    effects: Annotated[str | None, Form(description="effects to start with, comma separated")] = None,
 ) -> dict[str, Any]:
     check_axis(axis)
+    if gain is not None and not (math.isfinite(gain) and gain > 0):
+        raise ConfigError(f"gain must be a positive number (N·m/V, or N/V for a linear axis), got {gain!r}")
+    start_effects = tuple(e.strip() for e in (effects or "").split(",") if e.strip())
+    for e in start_effects:
+        get_effect(e)
     limit = svc.settings.max_upload_bytes
     raw = await file.read(limit + 1)
     if len(raw) > limit:
@@ -104,17 +114,26 @@ async def upload(
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise DataError(f"{label}: byte {exc.start} is not UTF-8 text; expected a CSV log") from None
-    return await asyncio.to_thread(store_measurement, svc.db, label, axis, text)
+    return await asyncio.to_thread(store_measurement, svc.db, label, axis, text, gain, start_effects)
 
 
-def store_measurement(db: Database, label: str, axis: str, text: str) -> dict[str, Any]:
-    """Validate, then store a measurement and its first version: the base model with its
-    parameters fitted (as ``tracker model fit``). Invalid text raises DataError before anything
-    is written."""
+def store_measurement(
+    db: Database,
+    label: str,
+    axis: str,
+    text: str,
+    gain_nm_per_v: float | None = None,
+    effects: tuple[str, ...] = (),
+) -> dict[str, Any]:
+    """Validate, then store a measurement and its first version: the axis' base model (plus
+    ``effects``, with K overridden by ``gain_nm_per_v``, as ``--effects``/``--gain`` on the
+    command line) with its parameters fitted. Invalid text or options raise DataError or
+    ConfigError before anything is written."""
     from tracker.workbench.fit import fit_model
 
+    model = AxisModel.for_axis(axis, effects, gain_nm_per_v=gain_nm_per_v)
     meas = parse_log(text, label)
-    res = fit_model(meas, AxisModel.for_axis(axis))
+    res = fit_model(meas, model)
     summary = _fit_summary(meas, res.model, _fitter_extra(res))
     mid = db.add_measurement(label, axis, text, meas.n, meas.dt_s)
     vid = db.add_version(mid, None, "base", model_to_json(res.model, axis), summary)

@@ -68,6 +68,8 @@ async function upload(ev) {
   const form = new FormData();
   form.append("file", file);
   form.append("axis", $("upload-axis").value);
+  if ($("upload-gain").value) form.append("gain", $("upload-gain").value);
+  if ($("upload-effects").value.trim()) form.append("effects", $("upload-effects").value.trim());
   setBusy(true);
   try {
     const rec = await api("POST", "/workbench/measurements", undefined, { form });

@@ -234,3 +234,31 @@ def test_measurement_series_and_delete(rig: Rig, offset_csv: str) -> None:
     assert rig.client.delete(f"{API}/measurements/{mid}", headers=rig.h("engineer")).status_code == 204
     assert rig.client.get(f"{API}/measurements/{mid}", headers=rig.h("viewer")).status_code == 404
     assert rig.client.get(f"{API}/measurements/{mid}/versions", headers=rig.h("viewer")).status_code == 404
+
+
+def test_upload_with_starting_effects_and_gain(rig: Rig, offset_csv: str) -> None:
+    r = rig.client.post(
+        f"{API}/measurements",
+        headers=rig.h("engineer"),
+        files={"file": ("k.csv", offset_csv.encode(), "text/csv")},
+        data={"axis": "pan", "effects": "offset", "gain": "0.08"},
+    )
+    assert r.status_code == 201, r.text
+    v = rig.client.get(f"{API}/measurements/{r.json()['id']}/versions", headers=rig.h("viewer")).json()[0]
+    assert v["model"]["effects"] == ["offset"] and v["model"]["gain_nm_per_v"] == pytest.approx(0.08)
+    before = snapshot(rig)
+    bad = rig.client.post(
+        f"{API}/measurements",
+        headers=rig.h("engineer"),
+        files={"file": ("k.csv", offset_csv.encode(), "text/csv")},
+        data={"axis": "pan", "effects": "warp_drive"},
+    )
+    assert bad.status_code == 422 and "warp_drive" in bad.json()["detail"]
+    neg = rig.client.post(
+        f"{API}/measurements",
+        headers=rig.h("engineer"),
+        files={"file": ("k.csv", offset_csv.encode(), "text/csv")},
+        data={"axis": "pan", "gain": "-1"},
+    )
+    assert neg.status_code == 422
+    assert snapshot(rig) == before
