@@ -15,6 +15,7 @@ import asyncio
 import contextlib
 import logging
 import math
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,8 @@ import numpy as np
 log = logging.getLogger("app.viewer")
 
 MOUNT_HEIGHT_M = 1.2
+TRAIL_POINTS = 40
+TRAIL_PERIOD_S = 0.1
 ARRAY_HEIGHT_M = 1.0
 RAY_LENGTH_M = 2.5
 # Rotates viser's camera-frustum frame (looks along +z, +y down) to look along +x with +z up.
@@ -158,6 +161,17 @@ class RigViewer:
         sc.add_icosphere(
             "/room/array/estimate/talker", radius=0.12, color=(20, 160, 70), position=(RAY_LENGTH_M, 0.0, 0.0)
         )
+        # The last few seconds of estimates: where the localizer heard talkers (a fading trail).
+        self.trail = sc.add_point_cloud(
+            "/room/array/trail",
+            points=np.zeros((1, 3), dtype=np.float32),
+            colors=(20, 160, 70),
+            point_size=0.06,
+            point_shape="circle",
+            visible=False,
+        )
+        self._trail: deque[tuple[float, float, float]] = deque(maxlen=TRAIL_POINTS)
+        self._trail_t = -math.inf
         self.target_frame = sc.add_frame("/room/target", show_axes=False, position=(0.0, 0.0, MOUNT_HEIGHT_M))
         sc.add_line_segments("/room/target/ray", points=ray, colors=(200, 40, 40), thickness=0.006)
         sc.add_icosphere(
@@ -183,6 +197,32 @@ class RigViewer:
         else:
             self.estimate_frame.wxyz = quat_direction(math.radians(az), math.radians(el or 0.0))
             self.estimate_frame.visible = True
+        self._update_trail(frame.get("t_s"), az, el)
+
+    def _update_trail(self, t_s: float | None, az_deg: float | None, el_deg: float | None) -> None:
+        """Add an estimate to the trail every TRAIL_PERIOD_S of engine time; show the trail."""
+        if t_s is None or az_deg is None or t_s - self._trail_t < TRAIL_PERIOD_S:
+            if t_s is not None and t_s < self._trail_t:  # the engine clock restarted
+                self._trail.clear()
+                self._trail_t = -math.inf
+            return
+        self._trail_t = t_s
+        self._trail.append((t_s, math.radians(az_deg), math.radians(el_deg or 0.0)))
+        pts = (
+            np.array(
+                [
+                    [math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)]
+                    for _, a, e in self._trail
+                ]
+            )
+            * RAY_LENGTH_M
+        )
+        age = (t_s - np.array([t for t, _, _ in self._trail])) / (TRAIL_POINTS * TRAIL_PERIOD_S)
+        fade = np.clip(age, 0.0, 1.0)[:, None]
+        colors = ((1 - fade) * np.array([20, 160, 70]) + fade * np.array([220, 230, 225])).astype(np.uint8)
+        self.trail.points = pts.astype(np.float32)
+        self.trail.colors = colors
+        self.trail.visible = True
 
     def scene_state(self) -> dict[str, Any]:
         """What the 3D scene shows now, read back from the viser handles (degrees)."""
@@ -192,6 +232,7 @@ class RigViewer:
             "pan_deg": round(math.degrees(angle_about_z(self.pan_frame.wxyz)), 3),
             "tilt_deg": round(-math.degrees(angle_about_y(self.tilt_frame.wxyz)), 3),
             "estimate_visible": bool(self.estimate_frame.visible),
+            "trail_points": len(self._trail),
             "clients": len(self.server.get_clients()),
             "share_url_enabled": self.share_enabled,
         }

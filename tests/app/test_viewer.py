@@ -82,3 +82,22 @@ def test_binds_loopback_by_default() -> None:
 
     assert Settings().viewer_host == "127.0.0.1"
     assert Settings().host == "127.0.0.1"
+
+
+def test_the_trail_keeps_the_last_estimates(viewer: RigViewer) -> None:
+    for k in range(100):
+        viewer.show(
+            {
+                "t_s": 100.0 + 0.1 * k,
+                "pan_deg": 0.0,
+                "tilt_deg": 0.0,
+                "estimate_azimuth_deg": 30.0 if k % 2 else -20.0,
+                "estimate_elevation_deg": None,
+            }
+        )
+    s = viewer.scene_state()
+    assert s["trail_points"] == 40
+    pts = np.asarray(viewer.trail.points, dtype=float)
+    az = np.degrees(np.arctan2(pts[:, 1], pts[:, 0]))
+    assert set(np.round(az).astype(int)) == {30, -20}
+    np.testing.assert_allclose(np.linalg.norm(pts, axis=1), 2.5, rtol=2e-3)  # viser stores float16
