@@ -203,11 +203,44 @@ def search_start(
         fc = m_id.params["coulomb.torque"]
         if m_id.params["stiction.static_torque"] < 1.05 * fc:
             m_id = replace_params(m_id, {"stiction.static_torque": 1.3 * fc})
+    # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
+    own = replace_params(
+        m,
+        {
+            n: m_id.params[n]
+            for n in m_id.params
+            if n.split(".")[0] in ("delay", "saturation", "ripple", "quantization")
+            or n == "stiction.velocity"
+        },
+    )
+    # A third start: the model's base values with the data's values for the added effects.
+    # Inverse dynamics can find an effect well (gravity's torque and phase) while biasing a base
+    # parameter (b from a closed loop); dropping its effect values then would leave the fit at a
+    # degenerate zero (T = 0: no gradient in the phase) from which it never leaves.
+    hybrid = replace_params(
+        own, {n: v for n, v in m_id.params.items() if n.split(".")[0] not in BASE_EFFECTS}
+    )
+    m_id = min((m_id, own, hybrid), key=lambda cand: window_cost(meas, est, cand, k))
+    # Hidden-state effects are searched by prediction on the chosen start: inverse dynamics has no
+    # hidden state, and through a wide dead band it returns nonsense (J ten times too small), on
+    # which no width predicts better than none.
+    return StartValues(
+        _search_hidden_state(meas, est, m_id, free, k), idf.relative_error_percent if idf else math.nan
+    )
+
+
+def _search_hidden_state(
+    meas: Measurement, est: StateEstimate, m_id: AxisModel, free: Sequence[str], k: int
+) -> AxisModel:
+    """Grid searches by k-step prediction for backlash width and belt frequency/damping."""
     unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
     if "backlash.width" in free:
-        m_id = grid_on_prediction(
-            meas, est, m_id, "backlash.width", [c * unit for c in BACKLASH_GRID_COUNTS], k
-        )
+        # From one count up to a tenth of the travel: counts alone (or the noise level, on a log
+        # without quantization) can leave the grid far short of a real dead band.
+        top = max(unit * BACKLASH_GRID_COUNTS[-1], 0.1 * float(np.ptp(meas.theta_rad)))
+        top = min(top, get_param("backlash.width").upper)
+        grid = np.geomspace(unit, max(top, 2 * unit), len(BACKLASH_GRID_COUNTS))
+        m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [float(w) for w in grid], k)
         # The cost moves in steps as contacts cross sample boundaries, so a gradient barely
         # refines the width: finish the search on a fine grid instead.
         w0 = m_id.params["backlash.width"]
@@ -221,25 +254,7 @@ def search_start(
         m_id = grid_on_prediction(meas, est, m_id, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
         if "compliance.damping" in free:
             m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
-    # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
-    own = replace_params(
-        m,
-        {
-            n: m_id.params[n]
-            for n in m_id.params
-            if n.split(".")[0] in ("delay", "saturation", "backlash", "compliance", "ripple", "quantization")
-            or n == "stiction.velocity"
-        },
-    )
-    # A third start: the model's base values with the data's values for the added effects.
-    # Inverse dynamics can find an effect well (gravity's torque and phase) while biasing a base
-    # parameter (b from a closed loop); dropping its effect values then would leave the fit at a
-    # degenerate zero (T = 0: no gradient in the phase) from which it never leaves.
-    hybrid = replace_params(
-        own, {n: v for n, v in m_id.params.items() if n.split(".")[0] not in BASE_EFFECTS}
-    )
-    m_id = min((m_id, own, hybrid), key=lambda cand: window_cost(meas, est, cand, k))
-    return StartValues(m_id, idf.relative_error_percent if idf else math.nan)
+    return m_id
 
 
 __all__ = [

@@ -34,3 +34,13 @@ def test_adding_gravity_recovers_it_from_the_default_start(gravity_log) -> None:
     assert fit.params["gravity.torque"] == pytest.approx(0.06, rel=0.1)
     wrapped = math.remainder(fit.params["gravity.phase"] - 2.0, 2 * math.pi)
     assert abs(wrapped) < 0.1
+
+
+def test_a_wide_dead_band_is_found_although_inverse_dynamics_fails_through_it() -> None:
+    """Regression: with a 1.4° dead band inverse dynamics returned J ten times too small; the
+    backlash grid ran on that model, found nothing and the fit ended at width 0 (blind check,
+    backlash seed 1: width −100 %)."""
+    truth = AxisModel.for_axis("pan", ["backlash"], {"backlash.width": 0.025})
+    log = closed_loop_log(truth, duration_s=20.0, seed=5, disturbance_nm=5e-4)
+    fit = fit_model(log, AxisModel.for_axis("pan", ["backlash"]))
+    assert fit.params["backlash.width"] == pytest.approx(0.025, rel=0.15)
