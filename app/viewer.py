@@ -178,7 +178,8 @@ class RigViewer:
             "/room/target/tip", radius=0.05, color=(200, 40, 40), position=(RAY_LENGTH_M, 0.0, 0.0)
         )
         self.server.gui.add_markdown(
-            "**3DAT rig** — orange: camera frustum · red: target · green: talker estimate · dots: microphones"
+            "**3DAT rig** — orange: camera frustum · red: target · green: talker estimate "
+            "(fading dots: the last 4 s) · dark green: microphones"
         )
 
     def show(self, frame: dict[str, Any]) -> None:
