@@ -97,6 +97,9 @@ def run_server(host: str | None = None, port: int | None = None, config: str | N
     import uvicorn
 
     settings = load_settings(config, host=host, port=port)
+    from app.rig import check_settings
+
+    check_settings(settings)
     logging.basicConfig(
         level=settings.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )

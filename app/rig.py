@@ -36,6 +36,18 @@ def build_driver(settings: Settings, hidden: Any = None, axis: str = "pan") -> A
     return SimDriver()
 
 
+def check_settings(settings: Settings) -> None:
+    """Fail early (ConfigError, one line on the command line) on a bad rig or array file."""
+    if settings.rig_config is not None:
+        from tracker.drivers.sim import load_rig_config
+
+        load_rig_config(settings.rig_config)
+    if settings.array_file is not None:
+        from tracker.audio.array import load_array
+
+        load_array(settings.array_file)
+
+
 def build_engine(settings: Settings) -> Any:
     """The engine on the simulated rig, with the service's phase-margin floor."""
     from tracker.engine import Engine, EngineConfig

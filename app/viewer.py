@@ -62,21 +62,12 @@ def angle_about_y(wxyz: Any) -> float:
 
 
 def load_mics(path: Path | None) -> np.ndarray:
-    """Microphone positions (n_mics, 3) in metres from an array JSON; a 4-mic square by default."""
-    if path is not None:
-        try:
-            from tracker.audio.array import MicArray
+    """Microphone positions (n_mics, 3) in metres from an array JSON (validated by
+    ``tracker.audio.array.load_array``); the shipped 4-mic square by default (as the meeting)."""
+    from tracker.audio.array import load_array
 
-            loader = getattr(MicArray, "from_json", None) or getattr(MicArray, "load", None)
-            if loader is not None:
-                return np.asarray(loader(path).positions_m, dtype=float)
-        except ImportError:
-            pass
-        import json
-
-        return np.asarray(json.loads(Path(path).read_text())["mics"], dtype=float)
-    s = 0.0325
-    return np.array([[s, s, 0.0], [-s, s, 0.0], [-s, -s, 0.0], [s, -s, 0.0]])
+    default = Path(__file__).resolve().parent.parent / "examples" / "arrays" / "square4_65mm.json"
+    return np.asarray(load_array(path or default).positions_m, dtype=float)
 
 
 def _refuse_share_url(*_: Any, **__: Any) -> None:
