@@ -49,3 +49,14 @@ def test_bad_config_is_a_config_error_naming_it(tmp_path: Path, text: str, words
 def test_missing_config_file(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="no such file"):
         load_settings(tmp_path / "nope.toml")
+
+
+def test_a_bad_rig_file_fails_before_the_server_starts(tmp_path: Path) -> None:
+    from app.rig import check_settings
+
+    rig_file = tmp_path / "rig.json"
+    rig_file.write_text('{"pan": {"effects": ["warp"]}}')
+    with pytest.raises(ConfigError, match="warp"):
+        check_settings(load_settings(None, rig_config=str(rig_file)))
+    rig_file.write_text('{"pan": {"effects": ["offset"], "params": {"offset.torque": 0.01}}}')
+    check_settings(load_settings(None, rig_config=str(rig_file)))
