@@ -13,11 +13,17 @@ returns the direction the camera should point at. The policy imitates a good ope
   (precise, but lagging a walker, so trusted less the faster the talker moves) and the short
   window's (quick, noisy) when they fall inside the gate; estimates outside it are evidence
   for up to three candidate talkers;
+* a candidate is confirmed early (adaptive confirmation) when ``fast_confirm_hits`` confident
+  short windows agree on it and the long window already points there;
+* confident frames the speech detector rejected within ``onset_lookback_s`` before a new
+  candidate, pointing the same way, count for it (the detector accepts a turn a few frames
+  late; the localizer already had the direction);
 * after a switch the camera stays at least ``min_hold_s`` unless the floor was silent for
   longer than ``pause_tolerance_s`` (then the next talker is taken as soon as confirmed);
 * pauses shorter than ``pause_tolerance_s`` keep a talker's claim to the floor;
 * within a talker the shot moves only when the smoothed direction leaves the ``deadband_rad``
-  around the current shot (a walker is followed in dead-band steps the shaping smooths out);
+  around the current shot; a talker whose bearing rate exceeds ``moving_rate_rad_s`` (a
+  walker) is followed in ``moving_deadband_rad`` steps, led by ``rate * lead_s``;
 * after ``wide_after_switches`` switches back and forth between the same two directions within
   ``wide_window_s``, the camera takes a wide shot between them until one talker has held the
   floor for ``wide_release_s``.
@@ -44,14 +50,14 @@ class TrackerSettings:
     """Talker tracker and switching policy; every field adjustable, defaults for a meeting room."""
 
     min_confidence: float = 0.05
-    confidence_quantile: float = 0.5
+    confidence_quantile: float = 0.3
     confidence_window_s: float = 10.0
-    measurement_std_rad: float = float(np.deg2rad(4.0))
+    measurement_std_rad: float = float(np.deg2rad(3.0))
     fine_std_rad: float = float(np.deg2rad(2.0))
     accel_std_rad_s2: float = float(np.deg2rad(20.0))
     max_rate_rad_s: float = float(np.deg2rad(30.0))
     short_updates_with_fine: bool = True
-    gate_rad: float = float(np.deg2rad(10.0))
+    gate_rad: float = float(np.deg2rad(8.0))
     reaction_time_s: float = 0.2
     candidate_share: float = 0.6
     min_hold_s: float = 2.0
@@ -61,11 +67,20 @@ class TrackerSettings:
     wide_window_s: float = 20.0
     wide_release_s: float = 6.0
     wide_azimuth_rad: float | None = None
+    lead_s: float = 0.0
+    moving_rate_rad_s: float = float(np.deg2rad(4.0))
+    moving_deadband_rad: float = float(np.deg2rad(1.0))
+    onset_lookback_s: float = 0.5
+    fast_confirm_hits: int = 2
+    unvoiced_updates: bool = True
+    unvoiced_std_factor: float = 1.5
+    coast_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("reaction_time_s", "min_hold_s", "pause_tolerance_s", "wide_window_s",
                      "wide_release_s", "gate_rad", "measurement_std_rad", "fine_std_rad",
-                     "accel_std_rad_s2"):
+                     "accel_std_rad_s2", "lead_s", "moving_rate_rad_s", "moving_deadband_rad",
+                     "onset_lookback_s"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
                 raise ConfigError(f"tracker setting {name}={value} must be a finite value >= 0")
@@ -164,6 +179,7 @@ class TalkerTracker:
     _switches: list[tuple[float, float, float]] = field(default_factory=list)
     _wide_rad: float | None = None
     _confidences: list[tuple[float, float]] = field(default_factory=list)
+    _unvoiced: list[tuple[float, float, float]] = field(default_factory=list)
 
     def step(self, t_s: float, azimuth_rad: float, elevation_rad: float | None,
              confidence: float, speech: bool, fine_azimuth_rad: float | None = None,
@@ -180,6 +196,14 @@ class TalkerTracker:
         confident = speech and finite and confidence >= s.min_confidence
         if confident and s.confidence_quantile > 0.0:
             confident = self._confident(t_s, confidence)
+        if not speech and finite and confidence >= s.min_confidence:
+            # Kept for the onset look-back: the speech detector needs a few frames to accept
+            # the start of a turn, the localizer does not.
+            horizon = t_s - s.onset_lookback_s
+            self._unvoiced = [u for u in self._unvoiced if u[0] >= horizon]
+            self._unvoiced.append((t_s, _wrap(azimuth_rad), confidence))
+            if s.unvoiced_updates:
+                self._follow_unvoiced(t_s, _wrap(azimuth_rad), confidence)
         fine = None
         if speech and fine_azimuth_rad is not None and np.isfinite(fine_azimuth_rad):
             fine = _wrap(fine_azimuth_rad)
@@ -192,15 +216,38 @@ class TalkerTracker:
             self._last_speech_t_s = t_s
         return self._target(t_s)
 
+    def _follow_unvoiced(self, t_s: float, z: float, confidence: float) -> None:
+        """Within a turn, a confident frame the speech detector rejected, inside the nominal
+        gate, still updates the current talker (quiet syllables of a walker who keeps walking).
+
+        It never starts a candidate and does not hold the floor.
+        """
+        s = self.settings
+        talker = self._talker
+        if (talker is None or t_s - self._last_speech_t_s > s.pause_tolerance_s
+                or confidence < max(self._confidence_level(), s.min_confidence)):
+            return
+        before = (talker.x.copy(), talker.p.copy(), talker.t_s)
+        talker.predict(t_s, s.accel_std_rad_s2)
+        if abs(talker.innovation(z)) <= s.gate_rad:
+            talker.update(z, (s.unvoiced_std_factor * s.measurement_std_rad) ** 2)
+            talker.limit_rate(s.max_rate_rad_s)
+        else:
+            talker.x, talker.p, talker.t_s = before
+
     def _confident(self, t_s: float, confidence: float) -> bool:
         """Keep frames above the running quantile of recent speech-frame confidences."""
         horizon = t_s - self.settings.confidence_window_s
         self._confidences = [(t, c) for t, c in self._confidences if t >= horizon]
         self._confidences.append((t_s, confidence))
-        if len(self._confidences) < 5:
-            return True
-        level = np.quantile([c for _, c in self._confidences], self.settings.confidence_quantile)
-        return bool(confidence >= level)
+        return bool(confidence >= self._confidence_level())
+
+    def _confidence_level(self) -> float:
+        """The running confidence quantile (0 until five speech frames were seen)."""
+        if len(self._confidences) < 5 or self.settings.confidence_quantile <= 0.0:
+            return 0.0
+        return float(np.quantile([c for _, c in self._confidences],
+                                 self.settings.confidence_quantile))
 
     # -- talker evidence -------------------------------------------------------------------
 
@@ -226,6 +273,8 @@ class TalkerTracker:
                 assert fine is not None
                 # The long window lags a walker by fine_lag_s: trust it less the faster the
                 # talker moves, so the short windows carry a walker and the long one a sitter.
+                # The measurement model takes the lag (constant velocity); the rate is
+                # uncertain, so the lag error also widens the noise.
                 lag_error = fine_lag_s * float(self._talker.x[1])
                 self._talker.update(fine, s.fine_std_rad**2 + lag_error**2)
             if short_in_gate and (s.short_updates_with_fine or not fine_in_gate):
@@ -242,6 +291,7 @@ class TalkerTracker:
             if short_in_gate or (z is None and not fine_elsewhere):
                 self._expire_candidates(t_s)
                 return
+        short_confident = z is not None
         if z is None:
             # A long window pointing away from the talker (or at the first talker) is
             # evidence for a candidate too, when the short one was not confident.
@@ -256,7 +306,10 @@ class TalkerTracker:
         else:
             # With a long window as well, it must agree: a burst of reflections in the short
             # windows never moves the long one, a new talker does within half its length.
-            confirmed = persistent and abs(_wrap(fine - c.azimuth_rad)) <= s.gate_rad
+            # A new talker the short windows agree on twice and the long window already
+            # points at is confirmed before the reaction time (adaptive confirmation).
+            fast = c.hits >= s.fast_confirm_hits and short_confident
+            confirmed = (persistent or fast) and abs(_wrap(fine - c.azimuth_rad)) <= s.gate_rad
         may_switch = floor_open or t_s - self._last_switch_t_s >= s.min_hold_s
         if confirmed and (may_switch or self._talker is None):
             self._switch(t_s, c.azimuth_rad, elevation_rad)
@@ -270,6 +323,16 @@ class TalkerTracker:
             best.add(t_s, z)
             return best
         fresh = _Candidate(t_s, t_s, z, self._frames)
+        # Onset look-back: confident unvoiced frames just before that point the same way are
+        # the start of this turn (the speech detector accepts a turn a few frames late).
+        level = self._confidence_level()
+        earlier = [u for u in self._unvoiced
+                   if 0.0 < t_s - u[0] <= self.settings.onset_lookback_s and u[2] >= level
+                   and abs(_wrap(u[1] - z)) <= self.settings.gate_rad]
+        if earlier:
+            fresh.first_t_s = min(u[0] for u in earlier)
+            fresh.hits += len(earlier)
+            fresh.first_frame -= len(earlier)
         self._candidates = [*self._candidates[-(_MAX_CANDIDATES - 1):], fresh]
         return fresh
 
@@ -329,6 +392,14 @@ class TalkerTracker:
             self._wide_rad = None
             self._switches.clear()
             self._target_rad = talker
-        if abs(_wrap(talker - self._target_rad)) > s.deadband_rad:
+        rate = float(self._talker.x[1])
+        if abs(rate) >= s.moving_rate_rad_s:
+            # A walker: where she is now (coasting at most coast_s since the last evidence),
+            # led by the latency, followed closely (the shaping smooths the steps).
+            coast = min(max(0.0, t_s - self._talker.t_s), s.coast_s)
+            ahead = _wrap(talker + rate * (coast + s.lead_s))
+            if abs(_wrap(ahead - self._target_rad)) > s.moving_deadband_rad:
+                self._target_rad = ahead
+        elif abs(_wrap(talker - self._target_rad)) > s.deadband_rad:
             self._target_rad = talker
         return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)

@@ -118,3 +118,71 @@ def test_settings_are_validated():
         TrackerSettings(min_hold_s=-1.0)
     with pytest.raises(ConfigError, match="deadband"):
         TrackerSettings(deadband_rad=1.0)
+
+
+def run_with_fine(short_deg, fine_deg, speech=None, settings=None, confidence=None):
+    """Feed frames with a long-window estimate as well; returns (times, target_deg)."""
+    tracker = TalkerTracker(settings or TrackerSettings())
+    n = len(short_deg)
+    speech = np.ones(n, bool) if speech is None else np.asarray(speech, bool)
+    confidence = np.full(n, 0.5) if confidence is None else np.asarray(confidence, float)
+    targets = []
+    for k in range(n):
+        fine = fine_deg[k] * DEG if speech[k] and np.isfinite(fine_deg[k]) else None
+        point = tracker.step(k * HOP_S, short_deg[k] * DEG, None, float(confidence[k]),
+                             bool(speech[k]), fine, 0.6)
+        targets.append(point.azimuth_rad / DEG)
+    return np.arange(n) * HOP_S, np.array(targets)
+
+
+def test_consistent_new_talker_confirmed_by_the_long_window_switches_fast():
+    # A at 30° for 5 s, then B at -40°: from the change both windows agree on B.
+    rng = np.random.default_rng(4)
+    short = np.concatenate([np.full(50, 30.0), np.full(30, -40.0)]) + rng.normal(0, 1.0, 80)
+    fine = np.concatenate([np.full(50, 30.0), np.full(30, -40.0)]) + rng.normal(0, 0.5, 80)
+    t, target = run_with_fine(short, fine, settings=TrackerSettings(reaction_time_s=0.5))
+    first = t[np.abs(target + 40.0) < 5.0][0] - 5.0
+    assert first <= 0.1 + 1e-9  # two agreeing frames, well inside the 0.5 s reaction time
+    slow = TrackerSettings(reaction_time_s=0.5, fast_confirm_hits=99)
+    t, target = run_with_fine(short, fine, settings=slow)
+    assert t[np.abs(target + 40.0) < 5.0][0] - 5.0 >= 0.5 - 1e-9
+
+
+def test_isolated_outlier_is_not_confirmed_even_if_repeated_once():
+    # Two short-window outliers in a row at 70° while the long window stays on the talker.
+    short = np.full(60, -10.0)
+    short[[30, 31]] = 70.0
+    fine = np.full(60, -10.0)
+    t, target = run_with_fine(short, fine)
+    assert np.all(np.abs(target[t >= 1.0] + 10.0) < 4.0)
+
+
+def test_frames_the_speech_detector_rejected_at_a_turn_onset_count_for_the_new_talker():
+    # A at 20° until 3 s; B starts at 3.0 s but the detector accepts her only from 3.4 s.
+    n = 60
+    short = np.where(np.arange(n) < 30, 20.0, -35.0)
+    fine = np.where(np.arange(n) < 34, 20.0, -35.0)  # long window: on B once she is accepted
+    speech = np.ones(n, bool)
+    speech[30:34] = False
+    confidence = np.full(n, 0.5)
+    t, target = run_with_fine(short, fine, speech=speech, confidence=confidence,
+                              settings=TrackerSettings(fast_confirm_hits=99))
+    first = t[np.abs(target + 35.0) < 5.0][0]
+    assert first == pytest.approx(3.4)  # at the first accepted frame, not 0.2 s later
+    no_lookback = TrackerSettings(fast_confirm_hits=99, onset_lookback_s=0.0)
+    t, target = run_with_fine(short, fine, speech=speech, confidence=confidence,
+                              settings=no_lookback)
+    assert t[np.abs(target + 35.0) < 5.0][0] >= 3.6 - 1e-9
+
+
+def test_lead_puts_the_shot_ahead_of_a_walker():
+    # 10°/s ramp, 8 s: with a lead the shot's mean error to the truth shrinks.
+    azimuth = -40.0 + 10.0 * np.clip(np.arange(120) * HOP_S - 2.0, 0.0, 8.0)
+    walking = (np.arange(120) * HOP_S >= 4.0) & (np.arange(120) * HOP_S < 10.0)
+    errors = {}
+    for lead_s in (0.0, 0.3):
+        t, target, _ = run(azimuth, settings=TrackerSettings(lead_s=lead_s), noise_deg=0.5)
+        errors[lead_s] = float(np.mean(target[walking] - azimuth[walking]))
+        assert np.all(np.abs(target[walking] - azimuth[walking]) < 5.0)
+    assert errors[0.3] > errors[0.0]  # further along the walk
+    assert abs(errors[0.3]) < 3.0
