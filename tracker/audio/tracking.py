@@ -18,6 +18,9 @@ returns the direction the camera should point at. The policy imitates a good ope
 * confident frames the speech detector rejected within ``onset_lookback_s`` before a new
   candidate, pointing the same way, count for it (the detector accepts a turn a few frames
   late; the localizer already had the direction);
+* a confirmed candidate within ``reacquire_rad`` of the current talker's track is that
+  talker found again (a walker the track lost): the track restarts there, but it is not a
+  switch (no hold, no count towards the wide shot);
 * after a switch the camera stays at least ``min_hold_s`` unless the floor was silent for
   longer than ``pause_tolerance_s`` (then the next talker is taken as soon as confirmed);
 * pauses shorter than ``pause_tolerance_s`` keep a talker's claim to the floor;
@@ -54,7 +57,7 @@ class TrackerSettings:
     confidence_window_s: float = 10.0
     measurement_std_rad: float = float(np.deg2rad(3.0))
     fine_std_rad: float = float(np.deg2rad(2.0))
-    accel_std_rad_s2: float = float(np.deg2rad(20.0))
+    accel_std_rad_s2: float = float(np.deg2rad(10.0))
     max_rate_rad_s: float = float(np.deg2rad(30.0))
     short_updates_with_fine: bool = True
     gate_rad: float = float(np.deg2rad(8.0))
@@ -74,13 +77,14 @@ class TrackerSettings:
     fast_confirm_hits: int = 2
     unvoiced_updates: bool = True
     unvoiced_std_factor: float = 1.5
-    coast_s: float = 1.0
+    coast_s: float = 0.5
+    reacquire_rad: float = float(np.deg2rad(20.0))
 
     def __post_init__(self) -> None:
         for name in ("reaction_time_s", "min_hold_s", "pause_tolerance_s", "wide_window_s",
                      "wide_release_s", "gate_rad", "measurement_std_rad", "fine_std_rad",
                      "accel_std_rad_s2", "lead_s", "moving_rate_rad_s", "moving_deadband_rad",
-                     "onset_lookback_s"):
+                     "onset_lookback_s", "coast_s", "reacquire_rad"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
                 raise ConfigError(f"tracker setting {name}={value} must be a finite value >= 0")
@@ -344,10 +348,16 @@ class TalkerTracker:
         s = self.settings
         previous = float(self._talker.x[0]) if self._talker is not None else None
         p0 = np.diag([s.measurement_std_rad**2, np.deg2rad(10.0) ** 2])
+        if previous is not None and abs(_wrap(azimuth_rad - previous)) <= s.reacquire_rad:
+            # The same talker found again a little away from her track (a walker the track
+            # lost): a new track (at rest: a kept rate can run away), but not a switch (no
+            # hold, no wide count).
+            previous = None
+        else:
+            self._last_switch_t_s = t_s
         self._talker = _Kalman(np.array([azimuth_rad, 0.0]), p0, t_s)
         self._elevation_rad = elevation_rad
         self._candidates = []
-        self._last_switch_t_s = t_s
         self._target_rad = azimuth_rad
         if previous is not None:
             self._switches.append((t_s, previous, azimuth_rad))

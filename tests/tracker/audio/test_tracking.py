@@ -186,3 +186,18 @@ def test_lead_puts_the_shot_ahead_of_a_walker():
         assert np.all(np.abs(target[walking] - azimuth[walking]) < 5.0)
     assert errors[0.3] > errors[0.0]  # further along the walk
     assert abs(errors[0.3]) < 3.0
+
+
+def test_reacquiring_the_same_talker_does_not_start_a_hold():
+    # A at 0° loses her track (she jumps 14° to 14°, beyond the 8° gate), then B at -50°
+    # takes the floor 1 s later: B must be taken at once, not after min_hold from the
+    # re-acquisition.
+    settings = TrackerSettings(min_hold_s=3.0, reaction_time_s=0.3)
+    truth = np.concatenate([np.full(40, 0.0), np.full(10, 14.0), np.full(30, -50.0)])
+    t, target, _ = run(truth, settings=settings, noise_deg=0.5)
+    assert np.any(np.abs(target[(t >= 4.0) & (t < 5.0)] - 14.0) < 3.0)  # found her again
+    first_b = t[np.abs(target + 50.0) < 5.0][0]
+    assert first_b <= 5.0 + 0.3 + 0.15
+    no_reacquire = TrackerSettings(min_hold_s=3.0, reaction_time_s=0.3, reacquire_rad=0.0)
+    t, target, _ = run(truth, settings=no_reacquire, noise_deg=0.5)
+    assert t[np.abs(target + 50.0) < 5.0][0] >= 7.0  # the old rule: held 3 s from ~4.3 s
