@@ -70,8 +70,8 @@ class TrackerSettings:
     wide_window_s: float = 20.0
     wide_release_s: float = 6.0
     wide_azimuth_rad: float | None = None
-    lead_s: float = 0.0
-    moving_rate_rad_s: float = float(np.deg2rad(4.0))
+    lead_s: float = 0.3
+    moving_rate_rad_s: float = float(np.deg2rad(5.0))
     moving_deadband_rad: float = float(np.deg2rad(1.0))
     onset_lookback_s: float = 0.5
     fast_confirm_hits: int = 2
@@ -79,12 +79,14 @@ class TrackerSettings:
     unvoiced_std_factor: float = 1.5
     coast_s: float = 0.5
     reacquire_rad: float = float(np.deg2rad(20.0))
+    reacquire_after_s: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("reaction_time_s", "min_hold_s", "pause_tolerance_s", "wide_window_s",
                      "wide_release_s", "gate_rad", "measurement_std_rad", "fine_std_rad",
                      "accel_std_rad_s2", "lead_s", "moving_rate_rad_s", "moving_deadband_rad",
-                     "onset_lookback_s", "coast_s", "reacquire_rad"):
+                     "onset_lookback_s", "coast_s", "reacquire_rad",
+                     "reacquire_after_s"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
                 raise ConfigError(f"tracker setting {name}={value} must be a finite value >= 0")
@@ -314,6 +316,14 @@ class TalkerTracker:
             # points at is confirmed before the reaction time (adaptive confirmation).
             fast = c.hits >= s.fast_confirm_hits and short_confident
             confirmed = (persistent or fast) and abs(_wrap(fine - c.azimuth_rad)) <= s.gate_rad
+        if confirmed and self._talker is not None and (
+                abs(self._talker.innovation(c.azimuth_rad)) <= s.reacquire_rad):
+            # Near the current talker: her again if her track has had no evidence for
+            # reacquire_after_s (lost), else reflections next to a healthy track.
+            if t_s - self._talker.t_s < s.reacquire_after_s:
+                return
+            self._switch(t_s, c.azimuth_rad, elevation_rad)
+            return
         may_switch = floor_open or t_s - self._last_switch_t_s >= s.min_hold_s
         if confirmed and (may_switch or self._talker is None):
             self._switch(t_s, c.azimuth_rad, elevation_rad)
