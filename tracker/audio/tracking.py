@@ -3,9 +3,9 @@
 Frames (direction estimates flagged as speech or not) go in one at a time, in time order; each
 returns the direction the camera should point at. The policy imitates a good operator:
 
-* only the more confident half of the speech frames count (confidence above the running
-  ``confidence_quantile`` of the last ``confidence_window_s``): in a reverberant room the
-  low-confidence windows are the ones dominated by reflections;
+* only the more confident speech frames count (confidence above the running
+  ``confidence_quantile``, 30 %, of the last ``confidence_window_s``): in a reverberant room
+  the low-confidence windows are the ones dominated by reflections;
 * a direction must persist for ``reaction_time_s`` (at least three frames) before the camera
   goes there, and when a long window is supplied it must point there too (a single wrong
   estimate, a cough or a burst of reflections does not move the camera);
@@ -19,14 +19,20 @@ returns the direction the camera should point at. The policy imitates a good ope
   candidate, pointing the same way, count for it (the detector accepts a turn a few frames
   late; the localizer already had the direction);
 * a confirmed candidate within ``reacquire_rad`` of the current talker's track is that
-  talker found again (a walker the track lost): the track restarts there, but it is not a
-  switch (no hold, no count towards the wide shot);
+  talker found again (a walker the track lost) when the track had no evidence for
+  ``reacquire_after_s``: the track restarts there, but it is not a switch (no hold, no count
+  towards the wide shot); next to a track that has evidence it is reflections and ignored;
+* within a turn, confident frames the speech detector rejected still update the current
+  talker inside the nominal gate (a walker's quiet syllables), and a moving talker's position
+  coasts at her rate for up to ``coast_s`` without evidence;
 * after a switch the camera stays at least ``min_hold_s`` unless the floor was silent for
   longer than ``pause_tolerance_s`` (then the next talker is taken as soon as confirmed);
 * pauses shorter than ``pause_tolerance_s`` keep a talker's claim to the floor;
 * within a talker the shot moves only when the smoothed direction leaves the ``deadband_rad``
   around the current shot; a talker whose bearing rate exceeds ``moving_rate_rad_s`` (a
-  walker) is followed in ``moving_deadband_rad`` steps, led by ``rate * lead_s``;
+  walker) is followed in ``moving_deadband_rad`` steps, led by ``rate * lead_s`` (``lead_s``:
+  the latency from a short window's centre to the camera arriving, 0.15 s half window +
+  0.05 s half hop + about 0.1 s of camera, so the shot lands where she is, not where she was);
 * after ``wide_after_switches`` switches back and forth between the same two directions within
   ``wide_window_s``, the camera takes a wide shot between them until one talker has held the
   floor for ``wide_release_s``.
@@ -279,8 +285,6 @@ class TalkerTracker:
                 assert fine is not None
                 # The long window lags a walker by fine_lag_s: trust it less the faster the
                 # talker moves, so the short windows carry a walker and the long one a sitter.
-                # The measurement model takes the lag (constant velocity); the rate is
-                # uncertain, so the lag error also widens the noise.
                 lag_error = fine_lag_s * float(self._talker.x[1])
                 self._talker.update(fine, s.fine_std_rad**2 + lag_error**2)
             if short_in_gate and (s.short_updates_with_fine or not fine_in_gate):
