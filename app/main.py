@@ -92,11 +92,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
-def run_server(host: str | None = None, port: int | None = None, config: str | None = None) -> None:
-    """Start the console with uvicorn (``tracker serve``); blocks until interrupted."""
+def run_server(
+    host: str | None = None, port: int | None = None, config: str | None = None, rig_config: str | None = None
+) -> None:
+    """Start the console with uvicorn (``tracker serve``); blocks until interrupted.
+
+    Command-line values (``host``, ``port``, ``rig_config``) beat the environment and the file.
+    """
     import uvicorn
 
-    settings = load_settings(config, host=host, port=port)
+    settings = load_settings(config, host=host, port=port, rig_config=rig_config)
     from app.rig import check_settings
 
     check_settings(settings)

@@ -16,7 +16,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--port", type=int, default=None, help="listen port (console)")
     p.add_argument("--config", default=None, metavar="FILE", help="service settings file")
     p.add_argument(
-        "--rig-config", default=None, metavar="FILE.json", help="engine-only mode: hidden effects of the rig"
+        "--rig-config", default=None, metavar="FILE.json", help="hidden effects of the simulated rig (JSON)"
     )
     p.add_argument("--engine-only", action="store_true", help="run the engine without the web console")
     p.set_defaults(func=run)
@@ -32,7 +32,9 @@ def run(args: argparse.Namespace) -> int:
                 raise
             app_main = None
         if app_main is not None and hasattr(app_main, "run_server"):
-            app_main.run_server(host=args.host, port=args.port, config=args.config)
+            app_main.run_server(
+                host=args.host, port=args.port, config=args.config, rig_config=args.rig_config
+            )
             return 0
     asyncio.run(_engine_only(args.rig_config))
     return 0
