@@ -47,8 +47,8 @@ def apt_install(packages: list[str]) -> None:
 
 
 def setup(apt_packages: list[str]) -> None:
-    if sys.version_info < (3, 11):
-        sys.exit("Python 3.11 or newer is needed")
+    if sys.version_info < (3, 11):  # noqa: UP036 - dev.py is what runs on an older Python first
+        sys.exit(f"Python 3.11 or newer is needed (this is {sys.version.split()[0]})")
     if not PY.exists():
         run([sys.executable, "-m", "venv", str(VENV)])
     digest = hashlib.sha256(
@@ -56,7 +56,19 @@ def setup(apt_packages: list[str]) -> None:
     ).hexdigest()
     if not STAMP.exists() or STAMP.read_text() != digest:
         run([str(PY), "-m", "pip", "install", "-q", "--upgrade", "pip"])
-        run([str(PY), "-m", "pip", "install", "-q", "-c", str(ROOT / "requirements.lock"), "-e", f"{ROOT}[dev]"])
+        run(
+            [
+                str(PY),
+                "-m",
+                "pip",
+                "install",
+                "-q",
+                "-c",
+                str(ROOT / "requirements.lock"),
+                "-e",
+                f"{ROOT}[dev]",
+            ]
+        )
         STAMP.write_text(digest)
     apt_install(apt_packages)
 

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import advance, encoder_rad, initial_state, pack_params
+from tracker.plant.simulate import advance, encoder_rad, pack_params
 from tracker.workbench.data import Measurement, write_log
 
 DT_S = 1e-3
@@ -35,15 +35,20 @@ def random_hidden(effect: str, rng: np.random.Generator, base: AxisModel) -> dic
     fc, b = base.params["coulomb.torque"], base.params["viscous.b"]
     u = rng.uniform
     table: dict[str, dict[str, float]] = {
-        "coulomb_asymmetry": {"coulomb_asymmetry.negative": fc * float(rng.choice([u(0.45, 0.7), u(1.4, 1.9)]))},
+        "coulomb_asymmetry": {
+            "coulomb_asymmetry.negative": fc * float(rng.choice([u(0.45, 0.7), u(1.4, 1.9)]))
+        },
         "viscous_asymmetry": {"viscous_asymmetry.negative": b * u(1.6, 2.6)},
         "offset": {"offset.torque": float(rng.choice([-1, 1])) * u(0.012, 0.03)},
         "stiction": {"stiction.static_torque": fc * u(1.5, 2.2), "stiction.velocity": u(0.02, 0.08)},
         "gravity": {"gravity.torque": u(0.03, 0.08), "gravity.phase": u(-math.pi, math.pi)},
         "delay": {"delay.seconds": u(0.006, 0.025)},
         "saturation": {"saturation.limit": u(2.0, 4.0)},
-        "ripple": {"ripple.amplitude": u(0.006, 0.015), "ripple.cycles_per_rev": float(rng.integers(8, 40)),
-                   "ripple.phase": u(-math.pi, math.pi)},
+        "ripple": {
+            "ripple.amplitude": u(0.006, 0.015),
+            "ripple.cycles_per_rev": float(rng.integers(8, 40)),
+            "ripple.phase": u(-math.pi, math.pi),
+        },
         "backlash": {"backlash.width": u(0.006, 0.03)},
         "compliance": {"compliance.frequency": u(8.0, 25.0), "compliance.damping": u(0.04, 0.2)},
     }
@@ -127,15 +132,26 @@ def main() -> int:
     a = ap.parse_args()
     base = AxisModel.for_axis("pan", ["quantization"])
     effects = [e for e in a.effects.split(",") if e] or [
-        "coulomb_asymmetry", "viscous_asymmetry", "offset", "stiction", "gravity", "delay",
-        "saturation", "ripple", "backlash", "compliance"]
+        "coulomb_asymmetry",
+        "viscous_asymmetry",
+        "offset",
+        "stiction",
+        "gravity",
+        "delay",
+        "saturation",
+        "ripple",
+        "backlash",
+        "compliance",
+    ]
     cases: list[tuple[str, ...]] = [()] + [(e,) for e in effects]
     if a.pairs:
         cases += [("gravity", "delay"), ("offset", "ripple"), ("stiction", "backlash")]
     folder = Path(a.keep or tempfile.mkdtemp(prefix="blind-"))
     folder.mkdir(parents=True, exist_ok=True)
-    print(f"{'hidden':32s} {'seed':>4s} {'verdict':20s} {'ok':3s} {'fit% before':>11s} {'after':>7s} "
-          f"{'diag s':>6s}  param errors")
+    print(
+        f"{'hidden':32s} {'seed':>4s} {'verdict':20s} {'ok':3s} {'fit% before':>11s} {'after':>7s} "
+        f"{'diag s':>6s}  param errors"
+    )
     correct = total = 0
     for case in cases:
         for seed in range(a.seeds):
@@ -151,8 +167,11 @@ def main() -> int:
             d = run_cli(["model", "diagnose", str(path), "--axis", "pan"])
             dt = time.perf_counter() - t0
             verdict = d.get("verdict", d.get("error"))
-            ok = (verdict is None) if not case else (verdict in case or (
-                "coulomb_asymmetry" in case and verdict == "offset"))
+            ok = (
+                (verdict is None)
+                if not case
+                else (verdict in case or ("coulomb_asymmetry" in case and verdict == "offset"))
+            )
             correct += ok
             total += 1
             errs = ""
@@ -165,8 +184,11 @@ def main() -> int:
                     if k.startswith(verdict + ".") and k in f.get("params", {}) and not k.endswith("phase"):
                         parts.append(f"{k.split('.')[1]} {100 * (f['params'][k] - v) / v:+.0f}%")
                 errs = ", ".join(parts)
-            print(f"{'+'.join(case) or 'clean':32s} {seed:4d} {str(verdict):20s} {'yes' if ok else 'NO':3s} "
-                  f"{d.get('fit_percent', float('nan')):11.2f} {after:7.2f} {dt:6.1f}  {errs}", flush=True)
+            print(
+                f"{'+'.join(case) or 'clean':32s} {seed:4d} {str(verdict):20s} {'yes' if ok else 'NO':3s} "
+                f"{d.get('fit_percent', float('nan')):11.2f} {after:7.2f} {dt:6.1f}  {errs}",
+                flush=True,
+            )
     print(f"\nverdicts right: {correct}/{total}  (logs in {folder})")
     return 0
 

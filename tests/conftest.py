@@ -10,5 +10,7 @@ from __future__ import annotations
 import pytest
 
 
-def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
+def pytest_collection_modifyitems(
+    session: pytest.Session, config: pytest.Config, items: list[pytest.Item]
+) -> None:
     items.sort(key=lambda item: item.get_closest_marker("browser") is not None)

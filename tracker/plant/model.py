@@ -114,4 +114,8 @@ class AxisModel:
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready description."""
-        return {"gain_nm_per_v": self.gain_nm_per_v, "effects": list(self.effects), "params": dict(self.params)}
+        return {
+            "gain_nm_per_v": self.gain_nm_per_v,
+            "effects": list(self.effects),
+            "params": dict(self.params),
+        }

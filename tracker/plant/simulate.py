@@ -107,7 +107,7 @@ def _held_command(u: FloatArray, idx: int, lim: float) -> float:
         return lim
     if v < -lim:
         return -lim
-    return v
+    return float(v)
 
 
 @njit(cache=True, inline="always")
@@ -120,7 +120,7 @@ def _applied_command(u: FloatArray, t0: float, h: float, dt: float, P: FloatArra
     if frac_end <= 1.0 + 1e-12:
         return _held_command(u, j, lim)
     w1 = (1.0 - (a - j)) * dt / h
-    return w1 * _held_command(u, j, lim) + (1.0 - w1) * _held_command(u, j + 1, lim)
+    return float(w1 * _held_command(u, j, lim) + (1.0 - w1) * _held_command(u, j + 1, lim))
 
 
 @njit(cache=True, inline="always")
@@ -134,7 +134,7 @@ def _friction_step(omega: float, net: float, J: float, h: float, P: FloatArray) 
         if abs(net) <= thr:
             return 0.0
         s = 1.0 if net > 0.0 else -1.0
-        return h * (net - s * thr) / J
+        return float(h * (net - s * thr) / J)
     if omega > 0.0:
         fc, b, s = P[I_FCP], P[I_BP], 1.0
     else:
@@ -146,7 +146,7 @@ def _friction_step(omega: float, net: float, J: float, h: float, P: FloatArray) 
     new = omega + h * (net - s * fr - b * omega) / J
     if new * omega < 0.0:
         return 0.0  # friction stops motion; it cannot reverse it
-    return new
+    return float(new)
 
 
 @njit(cache=True, inline="always")
@@ -199,12 +199,14 @@ def encoder_rad(x: FloatArray, P: FloatArray) -> float:
     """What the encoder (on the motor) reports for state ``x``."""
     q = P[I_Q]
     if q > 0.0:
-        return q * math.floor(x[0] / q + 0.5)
-    return x[0]
+        return float(q * math.floor(x[0] / q + 0.5))
+    return float(x[0])
 
 
 @njit(cache=True)
-def _run(P: FloatArray, u: FloatArray, dt: float, x0: FloatArray, dist: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _run(
+    P: FloatArray, u: FloatArray, dt: float, x0: FloatArray, dist: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     n = u.shape[0]
     states = np.empty((n, STATE_SIZE))
     meas = np.empty(n)
@@ -286,7 +288,7 @@ def simulate(
     if dist.size and dist.shape != u.shape:
         raise DataError(f"disturbance has shape {dist.shape}, command has {u.shape}")
     states, meas = _run(P, u, float(dt_s), x, dist)
-    t = np.arange(u.size) * dt_s
+    t = np.arange(u.size, dtype=np.float64) * dt_s
     return SimResult(t, u, meas, states[:, 1], states[:, 2], states[:, 3])
 
 

@@ -46,7 +46,9 @@ class Measurement:
 
     def slice(self, start: int, stop: int) -> Measurement:
         """Samples ``start:stop`` as a new measurement."""
-        return Measurement(self.t_s[start:stop], self.u_v[start:stop], self.theta_rad[start:stop], self.source)
+        return Measurement(
+            self.t_s[start:stop], self.u_v[start:stop], self.theta_rad[start:stop], self.source
+        )
 
 
 def _parse_float(text: str, line: int, column: str) -> float:

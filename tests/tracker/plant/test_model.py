@@ -36,10 +36,26 @@ def test_every_parameter_has_units_bounds_and_a_default_inside_them() -> None:
 
 @pytest.mark.parametrize(
     "name",
-    ["inertia.J", "viscous.b", "coulomb.torque", "coulomb_asymmetry.negative", "viscous_asymmetry.negative",
-     "offset.torque", "stiction.static_torque", "stiction.velocity", "gravity.torque", "gravity.phase",
-     "delay.seconds", "saturation.limit", "ripple.amplitude", "ripple.cycles_per_rev", "ripple.phase",
-     "backlash.width", "compliance.frequency", "compliance.damping"],
+    [
+        "inertia.J",
+        "viscous.b",
+        "coulomb.torque",
+        "coulomb_asymmetry.negative",
+        "viscous_asymmetry.negative",
+        "offset.torque",
+        "stiction.static_torque",
+        "stiction.velocity",
+        "gravity.torque",
+        "gravity.phase",
+        "delay.seconds",
+        "saturation.limit",
+        "ripple.amplitude",
+        "ripple.cycles_per_rev",
+        "ripple.phase",
+        "backlash.width",
+        "compliance.frequency",
+        "compliance.damping",
+    ],
 )
 def test_the_contract_parameter_names_exist(name: str) -> None:
     assert get_param(name).name == name.split(".")[1]
@@ -67,8 +83,15 @@ def test_adding_an_asymmetry_starts_symmetric_and_removing_an_effect_drops_its_p
 
 def test_rebuilding_a_model_keeps_a_fitted_asymmetry() -> None:
     """Regression: with_params/with_effect reset *_asymmetry.negative to the positive twin."""
-    m = AxisModel.for_axis("pan", ["coulomb_asymmetry", "viscous_asymmetry"],
-                           {"coulomb_asymmetry.negative": 0.07, "viscous_asymmetry.negative": 1.2e-3})
-    for rebuilt in (m.with_params({"viscous.b": 9e-4}), m.with_effect("gravity"), m.without_effect("gravity")):
+    m = AxisModel.for_axis(
+        "pan",
+        ["coulomb_asymmetry", "viscous_asymmetry"],
+        {"coulomb_asymmetry.negative": 0.07, "viscous_asymmetry.negative": 1.2e-3},
+    )
+    for rebuilt in (
+        m.with_params({"viscous.b": 9e-4}),
+        m.with_effect("gravity"),
+        m.without_effect("gravity"),
+    ):
         assert rebuilt.params["coulomb_asymmetry.negative"] == 0.07
         assert rebuilt.params["viscous_asymmetry.negative"] == 1.2e-3

@@ -72,7 +72,9 @@ def test_stiction_holds_above_coulomb_until_break_away() -> None:
 
 def test_gravity_holds_the_load_where_torque_balances_sin_theta() -> None:
     """With 0 V and no friction a pendulum-like unbalance swings around θ = −phase (stable side)."""
-    m = AxisModel.for_axis("tilt", ["gravity"], {"gravity.torque": 0.2, "coulomb.torque": 0.0, "viscous.b": 0.01})
+    m = AxisModel.for_axis(
+        "tilt", ["gravity"], {"gravity.torque": 0.2, "coulomb.torque": 0.0, "viscous.b": 0.01}
+    )
     r = simulate(m, np.zeros(20000), DT, x0=initial_state(0.5))
     assert abs(r.theta_rad[-1]) < 0.01
     # A constant voltage holds it where K·u = T·sin θ.
@@ -119,8 +121,11 @@ def test_backlash_lets_the_encoder_move_through_the_dead_band_before_the_load() 
 
 
 def test_compliance_rings_at_its_frequency() -> None:
-    m = AxisModel.for_axis("pan", ["compliance"], {"compliance.frequency": 12.0, "compliance.damping": 0.02,
-                                                   "coulomb.torque": 0.0})
+    m = AxisModel.for_axis(
+        "pan",
+        ["compliance"],
+        {"compliance.frequency": 12.0, "compliance.damping": 0.02, "coulomb.torque": 0.0},
+    )
     u = np.zeros(4000)
     u[:20] = 5.0
     r = simulate(m, u, DT, quantize=False)

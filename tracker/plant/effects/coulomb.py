@@ -9,16 +9,14 @@ from tracker.plant.effects.base import Effect, FloatArray, Param
 
 def torque_nm(params: Mapping[str, float], theta: FloatArray, omega: FloatArray) -> FloatArray:
     """τ = Fc·sign(ω) (seed eq. 3.2)."""
-    return params["coulomb.torque"] * np.sign(np.asarray(omega, dtype=float))
+    return np.asarray(params["coulomb.torque"] * np.sign(np.asarray(omega, dtype=float)), dtype=float)
 
 
 EFFECT = Effect(
     name="coulomb",
     kind="base",
     description="Coulomb friction of constant magnitude opposing motion; sticks at rest.",
-    params=(
-        Param("torque", "N·m", 0.052, 0.0, 1e6, "Coulomb friction torque (positive direction)"),
-    ),
+    params=(Param("torque", "N·m", 0.052, 0.0, 1e6, "Coulomb friction torque (positive direction)"),),
     signature="a step in the error at every velocity reversal",
     torque_nm=torque_nm,
 )

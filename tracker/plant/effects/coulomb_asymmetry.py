@@ -18,9 +18,7 @@ EFFECT = Effect(
     name="coulomb_asymmetry",
     kind="torque",
     description="Coulomb friction differs by direction; coulomb.torque is then the positive one.",
-    params=(
-        Param("negative", "N·m", 0.052, 0.0, 1e6, "Coulomb torque when moving negative"),
-    ),
+    params=(Param("negative", "N·m", 0.052, 0.0, 1e6, "Coulomb torque when moving negative"),),
     signature="residual torque has a different mean in each direction of motion",
     torque_nm=torque_nm,
 )

@@ -11,7 +11,7 @@ def torque_nm(params: Mapping[str, float], theta: FloatArray, omega: FloatArray)
     """Extra friction over Coulomb: (Fs − Fc)·exp(−(ω/vs)²)·sign(ω) (Stribeck)."""
     w = np.asarray(omega, dtype=float)
     extra = params["stiction.static_torque"] - params["coulomb.torque"]
-    return extra * np.exp(-((w / params["stiction.velocity"]) ** 2)) * np.sign(w)
+    return np.asarray(extra * np.exp(-((w / params["stiction.velocity"]) ** 2)) * np.sign(w), dtype=float)
 
 
 EFFECT = Effect(

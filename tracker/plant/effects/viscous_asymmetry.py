@@ -18,9 +18,7 @@ EFFECT = Effect(
     name="viscous_asymmetry",
     kind="torque",
     description="Viscous friction differs by direction; viscous.b is then the positive one.",
-    params=(
-        Param("negative", "N·m·s/rad", 8.5e-4, 0.0, 1e6, "viscous coefficient when moving negative"),
-    ),
+    params=(Param("negative", "N·m·s/rad", 8.5e-4, 0.0, 1e6, "viscous coefficient when moving negative"),),
     signature="residual torque grows with speed differently in each direction",
     torque_nm=torque_nm,
 )
