@@ -237,7 +237,8 @@ def _fit_line(points: list[FrictionPoint], s: float) -> FrictionLine:
     if len(pts) < 3:
         raise DataError(
             f"friction ID: only {len(pts)} moving runs in the {'positive' if s > 0 else 'negative'} "
-            "direction; need 3 (widen the voltage range)"
+            "direction; need 3. Widen the voltage range, or look for a position-dependent torque "
+            "(a gravity unbalance): the sweep assumes the axis keeps moving at a constant voltage"
         )
     w = np.array([p.velocity_rad_s for p in pts])
     tq = np.array([p.torque_nm for p in pts])

@@ -8,7 +8,7 @@ import pytest
 
 from tracker.cli import main
 from tracker.drivers.sim import SimDriver
-from tracker.errors import JobCancelled
+from tracker.errors import DataError, JobCancelled
 from tracker.plant.model import AxisModel
 from tracker.workbench.friction_id import run_friction_id
 
@@ -93,3 +93,10 @@ def test_cli_rejects_an_unknown_hidden_effect(capsys: pytest.CaptureFixture[str]
     assert main(["friction-id", "--axis", "pan", "--effects", "warp_drive"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and "warp_drive" in err and "\n" == err[-1] and err.count("\n") == 1
+
+
+def test_an_unbalanced_axis_gets_an_error_that_names_the_likely_cause() -> None:
+    """Regression (practice rig hiding gravity): the job failed with only 'widen the voltage range'."""
+    rig = _rig("pan", ("gravity",), {"gravity.torque": 0.05, "gravity.phase": 1.0})
+    with pytest.raises(DataError, match="position-dependent torque"):
+        run_friction_id(rig, "pan")
