@@ -16,8 +16,10 @@ is within ``GUARD_LATENCY_S`` (less one sample), and that the transmission is st
 encoder is on the motor, so backlash within the margin (tested to 0.23°) is covered but a soft belt
 (the ``compliance`` effect) lets the load swing past what the motor side shows — a 12 Hz tilt
 belt deflects ~6° under 0.1 N·m. For such a rig, raise ``guard_margin_rad`` to the fitted
-belt's deflection at full torque. A rig outside these assumptions is outside what a
-motor-side guard can stop.
+belt's deflection at full torque (only stiff belts fit: ~0.1 rad at 20 Hz on pan). With a
+soft belt not even the encoder is guaranteed: the guard's rigid stop-point model and its full
+brake excite the resonance (a random search found the encoder 22° past; docs/control.md).
+A rig outside these assumptions is outside what a motor-side guard can stop.
 """
 
 from __future__ import annotations
@@ -52,6 +54,15 @@ class SoftLimits:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lower_rad) and math.isfinite(self.upper_rad)):
             raise ConfigError(f"soft limits must be finite, got [{self.lower_rad!r}, {self.upper_rad!r}]")
+        for name in ("target_margin_rad", "guard_margin_rad"):
+            margin = getattr(self, name)
+            if not (math.isfinite(margin) and margin >= 0.0):
+                raise ConfigError(f"SoftLimits.{name} must be a finite angle >= 0 rad, got {margin!r}")
+        if self.upper_rad - self.lower_rad <= 2.0 * self.guard_margin_rad:
+            raise ConfigError(
+                f"soft limits [{self.lower_rad:g}, {self.upper_rad:g}] rad leave no room inside the "
+                f"{self.guard_margin_rad:g} rad guard margin"
+            )
         if self.upper_rad - self.lower_rad <= 2.0 * self.target_margin_rad:
             raise ConfigError(
                 f"soft limits [{self.lower_rad:g}, {self.upper_rad:g}] rad leave no room inside the "

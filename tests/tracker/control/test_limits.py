@@ -11,6 +11,7 @@ from tracker.control.closed_loop import simulate_closed_loop
 from tracker.control.gains import LeadGains, ObserverPdGains
 from tracker.control.limits import SoftLimits, guard_command
 from tracker.control.trajectory import DEFAULT_LIMITS
+from tracker.errors import ConfigError
 from tracker.plant.model import AxisModel
 
 DT = 1e-3
@@ -110,6 +111,31 @@ def test_no_target_gain_or_hidden_effect_passes_the_soft_limit(axis: str, data: 
     assert np.all(np.isfinite(r.u_v)) and np.all(np.abs(r.u_v) <= 10.0)
     worst = float(np.max(np.abs(r.load_theta_rad)))
     assert worst <= lim, f"reached {math.degrees(worst):.3f}° past ±{math.degrees(lim):.0f}°"
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"guard_margin_rad": float("nan")},
+        {"guard_margin_rad": -0.01},
+        {"guard_margin_rad": 1.0},
+        {"target_margin_rad": float("inf")},
+        {"target_margin_rad": -0.01},
+    ],
+)
+def test_soft_limit_margins_are_validated(kwargs: dict[str, float]) -> None:
+    """A site's mount margin (guard_margin_rad) must be a finite angle that leaves room inside."""
+    with pytest.raises(ConfigError, match="margin"):
+        SoftLimits(-1.0, 1.0, **kwargs)
+
+
+def test_a_larger_guard_margin_moves_the_guard_line_in() -> None:
+    """A site margin for its mount: the encoder-side guard brakes that much earlier."""
+    decel = 100.0
+    # 2 rad/s needs 0.02 rad to stop: at 0.9 rad the default line (1 rad) is far, a 0.09 rad margin is not.
+    assert guard_command(5.0, 0.9, 2.0, 0.9, 2.0, -1.0, 1.0, 0.0, decel, 0.0, 10.0, 0.0) == 5.0
+    assert guard_command(5.0, 0.9, 2.0, 0.9, 2.0, -1.0, 1.0, 0.09, decel, 0.0, 10.0, 0.0) == -10.0
+    assert SoftLimits(-1.0, 1.0, guard_margin_rad=0.09).guard_margin_rad == 0.09
 
 
 def test_guard_brakes_when_the_stop_point_reaches_the_limit() -> None:
