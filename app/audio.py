@@ -1,30 +1,46 @@
-"""The simulated room as the engine's target source: a meeting (talkers taking turns, one walking)
-simulated once with the audio engineer's room model, run through the localizer and the talker
-tracker (``tracker.audio``), and played back on the engine's clock, looping.
+"""The talker tracker as the engine's target source, streamed in real time on the engine clock.
 
-Each tracked point applies from the end of its analysis window (when a live system would have
-it), exactly as ``tracker simulate meeting`` does. Building the meeting audio takes tens of
-seconds, so it runs in a background thread at start-up and the result is cached in the data
-folder; until it is ready the source says nothing and the engine holds.
+The input is the ``audio_input`` setting (``TRACKER_AUDIO_INPUT``):
+
+* ``simulated`` (default): a meeting (talkers taking turns, one walking) simulated once with the
+  audio engineer's room model. Building the room audio takes tens of seconds, so it runs in a
+  worker process at start-up and the multichannel audio is cached in the data folder; then it
+  is streamed block by block through the localizer and the talker tracker
+  (:class:`tracker.audio.stream.StreamingLocator`) paced by the engine clock, looping;
+* ``wav:PATH``: a multichannel WAV file, streamed the same way (looping);
+* ``live`` or ``live:DEVICE``: the sound card (PortAudio via sounddevice). When PortAudio or
+  the device is missing the status says why (``audio`` field) and the console keeps manual
+  pointing.
+
+The localizer runs in a background thread (a block batch at a time), never on the event loop.
+Until the first shot the source says nothing and the engine holds. :class:`MeetingSource`
+(the batch replay of a :class:`TrackTable`) is kept as the offline reference.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tracker.targets import Target
 
+if TYPE_CHECKING:
+    from tracker.audio.pipeline import Pipeline
+
 log = logging.getLogger("app.audio")
 FloatArray = NDArray[np.float64]
 CACHE_VERSION = 1
+AUDIO_CACHE_VERSION = 1
+BLOCK_S = 0.1  # streaming block
+MAX_BATCH_BLOCKS = 10  # at most this many blocks per push when catching up with the engine
 ARRAYS_DIR = Path(__file__).resolve().parent.parent / "examples" / "arrays"
 
 
@@ -77,41 +93,6 @@ class TrackTable:
             return None
 
 
-def _nan(x: float | None) -> float:
-    return math.nan if x is None else float(x)
-
-
-def track_meeting(seed: int = 1, duration_s: float = 60.0) -> TrackTable:
-    """Simulate the meeting and run localizer + tracker over it (seconds to a minute of CPU)."""
-    from tracker.audio.array import load_array
-    from tracker.audio.pipeline import Pipeline
-    from tracker.scenarios.meeting import MeetingSettings, build_meeting
-
-    settings = MeetingSettings()
-    array = load_array(ARRAYS_DIR / settings.array_file)
-    recording, _ = build_meeting(seed, duration_s, settings, array)
-    pipeline = Pipeline(
-        array,
-        recording.fs_hz,
-        settings.method,
-        settings.windows,
-        tracking=settings.tracking,
-        localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)},
-    )
-    frames = pipeline.estimate_frames(recording.audio)
-    track = pipeline.track(frames)
-    return TrackTable(
-        end_s=np.array([f.end_s for f in frames]),
-        target_az_rad=np.array([p.azimuth_rad if p.shot != "none" else math.nan for p in track]),
-        talker_az_rad=np.array(
-            [_nan(p.talker_azimuth_rad) if p.shot == "talker" else math.nan for p in track]
-        ),
-        estimate_az_rad=np.array([f.azimuth_rad if f.speech else math.nan for f in frames]),
-        estimate_el_rad=np.array([_nan(f.elevation_rad) if f.speech else math.nan for f in frames]),
-        duration_s=float(duration_s),
-    )
-
-
 class MeetingSource:
     """A target source (``name``, ``target_at``) replaying a tracked meeting on engine time."""
 
@@ -150,64 +131,255 @@ class MeetingSource:
         )
 
 
+def meeting_pipeline(fs_hz: int, array: Any = None) -> Pipeline:
+    """The meeting's localizer, windows and tracker settings for audio at ``fs_hz``."""
+    from tracker.audio.array import load_array
+    from tracker.audio.pipeline import Pipeline
+    from tracker.scenarios.meeting import MeetingSettings
+
+    settings = MeetingSettings()
+    array = array if array is not None else load_array(ARRAYS_DIR / settings.array_file)
+    return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
+                    localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)})
+
+
+def build_meeting_audio(seed: int, duration_s: float) -> tuple[int, FloatArray]:
+    """The simulated meeting's multichannel audio (tens of seconds of CPU): (fs_hz, (n_mics, n))."""
+    from tracker.audio.array import load_array
+    from tracker.scenarios.meeting import MeetingSettings, build_meeting
+
+    settings = MeetingSettings()
+    array = load_array(ARRAYS_DIR / settings.array_file)
+    recording, _ = build_meeting(seed, duration_s, settings, array)
+    return int(recording.fs_hz), np.asarray(recording.audio, dtype=float)
+
+
+def save_audio(path: Path, fs_hz: int, audio: FloatArray) -> None:
+    tmp = path.with_name(path.name + ".part.npz")
+    np.savez(tmp, version=AUDIO_CACHE_VERSION, fs_hz=fs_hz, audio=audio.astype(np.float32))
+    tmp.replace(path)
+
+
+def load_audio(path: Path) -> tuple[int, FloatArray] | None:
+    try:
+        d = np.load(path)
+        if int(d["version"]) != AUDIO_CACHE_VERSION:
+            return None
+        return int(d["fs_hz"]), np.asarray(d["audio"], dtype=float)
+    except (OSError, KeyError, ValueError):
+        return None
+
+
 def settings_digest() -> str:
-    """A short digest of the meeting and tracker settings: a cache made with others is not reused."""
+    """A short digest of the meeting settings: a cache made with others is not reused."""
     import hashlib
 
     from tracker.scenarios.meeting import MeetingSettings
 
-    return hashlib.sha256(f"{CACHE_VERSION}:{MeetingSettings()!r}".encode()).hexdigest()[:10]
+    return hashlib.sha256(f"{AUDIO_CACHE_VERSION}:{MeetingSettings()!r}".encode()).hexdigest()[:10]
 
 
-def start_meeting_source(
-    engine: Any, cache_dir: Path, seed: int = 1, duration_s: float = 60.0
-) -> MeetingSource:
-    """Plug a MeetingSource into ``engine`` now; fill it from the cache or a background thread."""
-    source = MeetingSource()
-    engine.set_target_source(source)
-    cache = cache_dir / f"meeting_seed{seed}_{int(duration_s)}s_{settings_digest()}.npz"
-    table = TrackTable.load(cache) if cache.exists() else None
-    if table is not None:
-        source.table, source.note = table, "ready"
-        return source
+class AudioStream:
+    """Streams an input through :class:`~tracker.audio.stream.StreamingLocator` in a thread.
+
+    ``source`` is the engine's target source; ``note`` the status line ("ready", "preparing
+    ...", or why audio is unavailable); ``cpu_ms_per_s`` the localizer's CPU per second of audio.
+    """
+
+    def __init__(self, engine: Any, label: str) -> None:
+        from tracker.audio.stream import StreamTargetSource
+
+        self.engine = engine
+        self.source = StreamTargetSource(name=label, stale_s=2.0)
+        self.note = "starting"
+        self.worker: Any = None  # the subprocess building the meeting audio, while it runs
+        self.locator: Any = None
+        self.closed = False
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._cpu_s = 0.0
+        self._audio_s = 0.0
+
+    @property
+    def cpu_ms_per_s(self) -> float:
+        loc = self.locator
+        cpu = self._cpu_s + (loc.compute_s if loc is not None else 0.0)
+        audio = self._audio_s + (loc.samples_in / loc.fs_hz if loc is not None else 0.0)
+        return 1000.0 * cpu / audio if audio > 0 else math.nan
+
+    def start(self, work: Any) -> None:
+        def run() -> None:
+            try:
+                work()
+            except Exception as exc:  # the console must keep working with manual pointing
+                if not self.closed:
+                    self.note = f"audio stopped: {type(exc).__name__}: {exc}"
+                    log.exception("the audio stream stopped")
+
+        self._thread = threading.Thread(target=run, name="audio-stream", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop streaming (at shutdown)."""
+        self.closed = True
+        self._stop.set()
+        proc = self.worker
+        if proc is not None and proc.poll() is None:
+            proc.terminate()
+
+    def engine_time_s(self) -> float:
+        return float(self.engine.status().t_s)
+
+    def _new_locator(self, fs_hz: int, n_channels: int) -> Any:
+        from tracker.audio.stream import StreamingLocator
+        from tracker.errors import DataError
+
+        pipeline = meeting_pipeline(fs_hz)
+        if n_channels != pipeline.array.n_mics:
+            raise DataError(f"the input has {n_channels} channel(s) but {pipeline.array.name} "
+                            f"has {pipeline.array.n_mics} mics")
+        if self.locator is not None:
+            self._cpu_s += self.locator.compute_s
+            self._audio_s += self.locator.samples_in / self.locator.fs_hz
+        self.locator = StreamingLocator(pipeline)
+        return self.locator
+
+    def play(self, fs_hz: int, audio: FloatArray) -> None:
+        """Stream ``audio`` (n_channels, n) on the engine clock, looping, until closed."""
+        n = audio.shape[1]
+        block = max(1, int(round(BLOCK_S * fs_hz)))
+        while not self._stop.is_set():
+            loc = self._new_locator(fs_hz, audio.shape[0])
+            t0, pos = self.engine_time_s(), 0
+            while pos < n and not self._stop.is_set():
+                due = int((self.engine_time_s() - t0) * fs_hz)
+                if due - pos < block and due < n:
+                    self._stop.wait(0.02)
+                    continue
+                hi = min(n, due, pos + MAX_BATCH_BLOCKS * block)
+                for target in loc.push(audio[:, pos:hi]):
+                    self.source.offer(target, t0 + target.ready_s)
+                pos = hi
+            for target in loc.finish():
+                self.source.offer(target, t0 + target.ready_s)
+
+    def listen(self, live: Any) -> None:
+        """Stream live capture until closed (the device paces it)."""
+        try:
+            loc = self._new_locator(live.fs_hz, live.n_channels)
+            for block in live.blocks(BLOCK_S):
+                if self._stop.is_set():
+                    break
+                for target in loc.push(block):
+                    self.source.offer(target, self.engine_time_s())
+        finally:
+            live.close()
+
+
+def parse_input(value: str | None) -> tuple[str, str | None]:
+    """The audio input setting (``TRACKER_AUDIO_INPUT`` when not given), validated."""
+    from app.settings import parse_audio_input
+    from tracker.errors import ConfigError
+
+    value = value if value is not None else os.environ.get("TRACKER_AUDIO_INPUT", "simulated")
+    try:
+        return parse_audio_input(value)
+    except ValueError as exc:
+        raise ConfigError(f"setting 'audio_input': {exc}") from None
+
+
+def start_meeting_source(engine: Any, cache_dir: Path, seed: int = 1, duration_s: float = 60.0,
+                         audio_input: str | None = None) -> AudioStream:
+    """Plug the streamed talker tracker into ``engine`` now and start streaming ``audio_input``.
+
+    Problems opening the input (PortAudio missing, a WAV with the wrong channel count) end up
+    in the returned handle's ``note``; they never raise.
+    """
+    kind, arg = parse_input(audio_input)
+    if kind == "live":
+        return _start_live(engine, arg)
+    if kind == "wav":
+        return _start_wav(engine, Path(str(arg)))
+    stream = AudioStream(engine, "simulated meeting")
+    engine.set_target_source(stream.source)
+    stream.note = "preparing the simulated meeting"
+    cache = cache_dir / f"meeting_audio_seed{seed}_{int(duration_s)}s_{settings_digest()}.npz"
 
     def work() -> None:
-        # In a separate process: the room simulation would otherwise hold the GIL for long
-        # stretches and make the engine loop (same process) miss its real-time pace.
-        import subprocess
-        import sys
-
-        try:
-            cmd = [sys.executable, "-m", "app.audio", str(seed), str(duration_s), str(cache)]
-            proc = subprocess.Popen(
-                cmd,
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.PIPE,
-                text=True,
-                cwd=Path(__file__).resolve().parent.parent,
-            )
-            source.worker = proc
-            _, err = proc.communicate(timeout=900)
-            source.worker = None
-            if proc.returncode != 0:
-                tail = err.strip().splitlines()
-                raise RuntimeError(tail[-1] if tail else f"worker exited with {proc.returncode}")
-            tab = TrackTable.load(cache)
-            if tab is None:
-                raise RuntimeError(f"the tracked meeting was not written to {cache}")
-            source.table, source.note = tab, "ready"
-            log.info("simulated meeting ready: %d analysis windows", tab.end_s.size)
-        except Exception as exc:  # the console must keep working with manual pointing
-            if source.closed:
+        loaded = load_audio(cache) if cache.exists() else None
+        if loaded is None:
+            loaded = _build_in_worker(stream, seed, duration_s, cache)
+            if loaded is None:
                 return
-            source.note = f"simulated meeting failed: {type(exc).__name__}: {exc}"
-            log.exception("building the simulated meeting failed")
+        stream.note = "ready"
+        log.info("simulated meeting ready: streaming %.0f s of audio", loaded[1].shape[1] / loaded[0])
+        stream.play(*loaded)
 
-    threading.Thread(target=work, name="simulated-meeting", daemon=True).start()
-    return source
+    stream.start(work)
+    return stream
+
+
+def _build_in_worker(stream: AudioStream, seed: int, duration_s: float, cache: Path
+                     ) -> tuple[int, FloatArray] | None:
+    # In a separate process: the room simulation would otherwise hold the GIL for long
+    # stretches and make the engine loop (same process) miss its real-time pace.
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "app.audio", str(seed), str(duration_s), str(cache)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            cwd=Path(__file__).resolve().parent.parent)
+    stream.worker = proc
+    _, err = proc.communicate(timeout=900)
+    stream.worker = None
+    if stream.closed:
+        return None
+    if proc.returncode != 0:
+        tail = err.strip().splitlines()
+        raise RuntimeError(tail[-1] if tail else f"worker exited with {proc.returncode}")
+    loaded = load_audio(cache)
+    if loaded is None:
+        raise RuntimeError(f"the meeting audio was not written to {cache}")
+    return loaded
+
+
+def _start_wav(engine: Any, path: Path) -> AudioStream:
+    from tracker.audio.sources import read_wav
+    from tracker.errors import TrackerError
+
+    stream = AudioStream(engine, f"wav {path.name}")
+    engine.set_target_source(stream.source)
+    try:
+        fs_hz, audio = read_wav(path)
+        stream._new_locator(fs_hz, audio.shape[0])  # channel count checked before streaming
+    except TrackerError as exc:
+        stream.note = f"audio unavailable: {exc}"
+        return stream
+    stream.note = "ready"
+    stream.start(lambda: stream.play(fs_hz, audio))
+    return stream
+
+
+def _start_live(engine: Any, device: str | None) -> AudioStream:
+    from tracker.audio.sources import LiveSource
+    from tracker.errors import TrackerError
+
+    stream = AudioStream(engine, "live capture")
+    engine.set_target_source(stream.source)
+    dev: int | str | None = int(device) if device is not None and device.isdigit() else device
+    try:
+        n_mics = meeting_pipeline(16000).array.n_mics
+        live = LiveSource(n_mics, 16000, dev)
+    except TrackerError as exc:  # PortAudio or the device missing: a clear status, no crash
+        stream.note = f"live capture unavailable: {exc}"
+        log.error("live capture unavailable: %s", exc)
+        return stream
+    stream.note = "ready"
+    stream.start(lambda: stream.listen(live))
+    return stream
 
 
 if __name__ == "__main__":  # the worker process: python -m app.audio SEED DURATION_S OUT.npz
     import sys
 
-    track_meeting(int(sys.argv[1]), float(sys.argv[2])).save(Path(sys.argv[3]))
+    save_audio(Path(sys.argv[3]), *build_meeting_audio(int(sys.argv[1]), float(sys.argv[2])))

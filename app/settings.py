@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, field_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from tracker.errors import ConfigError
@@ -38,6 +38,11 @@ class Settings(BaseSettings):
     array_file: Path | None = Field(
         None, description="microphone array JSON; default: the shipped 4-mic square"
     )
+    audio_input: str = Field(
+        "simulated",
+        description="what the talker tracker listens to: 'simulated' (the meeting room), "
+        "'live' or 'live:DEVICE' (sound card through PortAudio), 'wav:PATH' (a multichannel file)",
+    )
 
     viewer_enabled: bool = Field(True, description="start the viser 3D view")
     viewer_host: str = Field("127.0.0.1", description="viser binds here; it has no authentication")
@@ -50,6 +55,12 @@ class Settings(BaseSettings):
     min_phase_margin_deg: float = Field(45.0, ge=0.0, le=90.0, description="gains under this are refused")
     max_upload_bytes: int = Field(50_000_000, gt=0)
     log_level: Literal["debug", "info", "warning", "error"] = "info"
+
+    @field_validator("audio_input")
+    @classmethod
+    def _check_audio_input(cls, value: str) -> str:
+        parse_audio_input(value)
+        return value
 
     @classmethod
     def settings_customise_sources(
@@ -71,6 +82,26 @@ class Settings(BaseSettings):
     def admin_key_path(self) -> Path:
         """Where the first start writes the admin key (mode 0600)."""
         return self.data_dir / "admin.key"
+
+
+def parse_audio_input(value: str) -> tuple[str, str | None]:
+    """``audio_input`` as (kind, argument): ("simulated", None), ("live", device or None), ("wav", path).
+
+    Raises ValueError (reported by :func:`load_settings` as a ConfigError naming the setting).
+    """
+    kind, _, arg = value.strip().partition(":")
+    kind = kind.lower()
+    if kind == "simulated" and not arg:
+        return kind, None
+    if kind == "live":
+        return kind, arg or None
+    if kind == "wav":
+        if not arg:
+            raise ValueError("'wav:' needs a file path, e.g. wav:/data/meeting.wav")
+        if not Path(arg).is_file():
+            raise ValueError(f"WAV file {arg!r} not found")
+        return kind, arg
+    raise ValueError(f"{value!r} is not one of simulated, live, live:DEVICE, wav:PATH")
 
 
 class _FileSource(PydanticBaseSettingsSource):

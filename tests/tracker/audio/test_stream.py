@@ -1,0 +1,145 @@
+"""Streaming localisation: block by block gives the batch pipeline's frames and track."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.tracker.audio.conftest import FS_HZ, free_field
+from tracker.audio.array import MicArray
+from tracker.audio.pipeline import Pipeline, WindowSettings
+from tracker.audio.sources import RoomSource, WavSource, write_wav
+from tracker.audio.stream import StreamingLocator, StreamTargetSource, stream_blocks
+from tracker.errors import DataError
+
+HALF_PLANE = {"azimuth_range_rad": (-np.pi / 2, np.pi / 2)}
+
+
+def two_talkers(array: MicArray, az1: float, az2: float, seed: int = 1) -> np.ndarray:
+    """Quiet noise, talker 1 for 3 s, noise, talker 2 for 3 s, noise: (n_mics, n)."""
+    rng = np.random.default_rng(seed)
+    gap = 0.001 * rng.standard_normal((array.n_mics, FS_HZ // 2))
+    a = free_field(array, az1, duration_s=3.0, seed=seed)
+    b = free_field(array, az2, duration_s=3.0, seed=seed + 1)
+    return np.concatenate([gap, a, gap, b, gap], axis=1)
+
+
+def pipeline(array: MicArray) -> Pipeline:
+    return Pipeline(array, FS_HZ, "srp_phat", WindowSettings(0.3, 0.1, 1.5),
+                    localizer_options=HALF_PLANE)
+
+
+@pytest.fixture(scope="module")
+def recording(square4: MicArray) -> np.ndarray:
+    return two_talkers(square4, math.radians(35.0), math.radians(-40.0))
+
+
+@pytest.mark.parametrize("block", [160, 1234, 4000])
+def test_streaming_matches_the_batch_pipeline(square4: MicArray, recording: np.ndarray,
+                                              block: int) -> None:
+    batch = pipeline(square4).run(recording)
+    loc = StreamingLocator(pipeline(square4))
+    loc.keep_frames = True
+    out = stream_blocks(loc, (recording[:, i : i + block]
+                              for i in range(0, recording.shape[1], block)))
+    assert len(out) == len(batch.track) == len(loc.frames)
+    assert [f.speech for f in loc.frames] == [f.speech for f in batch.frames]
+    np.testing.assert_allclose([f.azimuth_rad for f in loc.frames],
+                               [f.azimuth_rad for f in batch.frames], atol=1e-9)
+    stream_az = np.array([t.azimuth_rad for t in out])
+    batch_az = np.array([p.azimuth_rad if p.shot != "none" else math.nan for p in batch.track])
+    np.testing.assert_allclose(stream_az, batch_az, atol=1e-6, equal_nan=True)
+    assert [t.shot for t in out] == [p.shot for p in batch.track]
+    # The buffer stays bounded (a few seconds), whatever the recording length.
+    assert loc._buf.shape[1] < 6 * FS_HZ
+
+
+def test_the_two_talkers_are_found_with_distinct_ids(square4: MicArray,
+                                                     recording: np.ndarray) -> None:
+    loc = StreamingLocator(pipeline(square4))
+    out = stream_blocks(loc, blocks_of(recording))
+    talking = [t for t in out if t.shot == "talker"]
+    first = [t for t in talking if t.end_s < 3.5]
+    last = [t for t in talking if t.end_s > 6.5]
+    assert first and last
+    assert abs(math.degrees(first[-1].azimuth_rad) - 35.0) < 5.0
+    assert abs(math.degrees(last[-1].azimuth_rad) + 40.0) < 5.0
+    assert first[-1].talker_id != last[-1].talker_id
+    assert loc.latest == out[-1]
+    # A target is never available before its window ended (causal), and lags it by the
+    # speech detector's look-ahead at most.
+    for t in out:
+        assert t.end_s <= t.ready_s <= t.end_s + loc.lookahead / FS_HZ + 1e-9
+
+
+def blocks_of(audio: np.ndarray) -> list[np.ndarray]:
+    return [audio[:, i : i + 1600] for i in range(0, audio.shape[1], 1600)]
+
+
+def test_a_wav_source_streams_like_the_array(square4: MicArray, recording: np.ndarray,
+                                             tmp_path: Path) -> None:
+    path = tmp_path / "meeting.wav"
+    write_wav(path, FS_HZ, recording)
+    src = WavSource(path)
+    loc = StreamingLocator(pipeline(square4))
+    out = stream_blocks(loc, src.blocks(0.1))
+    batch = pipeline(square4).run(WavSource(path)._audio)
+    batch_az = np.array([p.azimuth_rad if p.shot != "none" else math.nan for p in batch.track])
+    np.testing.assert_allclose([t.azimuth_rad for t in out], batch_az, atol=1e-6, equal_nan=True)
+    # 16-bit quantisation changes nothing that matters: same directions as the float audio.
+    assert abs(math.degrees(out[-1].azimuth_rad) + 40.0) < 5.0
+
+
+def test_a_room_source_streams(square4: MicArray, recording: np.ndarray) -> None:
+    from tracker.audio.room import Recording
+
+    fields = Recording.__dataclass_fields__
+    kwargs = {"audio": recording, "fs_hz": FS_HZ}
+    kwargs.update({k: None for k in fields if k not in kwargs})
+    src = RoomSource(Recording(**kwargs))
+    out = stream_blocks(StreamingLocator(pipeline(square4)), src.blocks(0.05))
+    assert len(out) == len(pipeline(square4).run(recording).track)
+
+
+@pytest.mark.skipif("prior_window_s" not in WindowSettings.__dataclass_fields__,
+                    reason="this pipeline has no prior window")
+def test_streaming_matches_the_batch_pipeline_with_a_prior_window(
+        square4: MicArray, recording: np.ndarray) -> None:
+    windows = WindowSettings(0.3, 0.1, 1.5, prior_window_s=0.8)  # type: ignore[call-arg]
+
+    def make() -> Pipeline:
+        return Pipeline(square4, FS_HZ, "srp_phat", windows, localizer_options=HALF_PLANE)
+
+    batch = make().run(recording)
+    out = stream_blocks(StreamingLocator(make()), blocks_of(recording))
+    batch_az = np.array([p.azimuth_rad if p.shot != "none" else math.nan for p in batch.track])
+    np.testing.assert_allclose([t.azimuth_rad for t in out], batch_az, atol=1e-6, equal_nan=True)
+
+
+def test_wrong_channel_count_or_nan_is_a_data_error(square4: MicArray) -> None:
+    loc = StreamingLocator(pipeline(square4))
+    with pytest.raises(DataError, match="2 channel"):
+        loc.push(np.zeros((2, 100)))
+    bad = np.zeros((square4.n_mics, 100))
+    bad[0, 5] = np.nan
+    with pytest.raises(DataError, match="NaN"):
+        loc.push(bad)
+
+
+def test_target_source_reports_the_latest_and_goes_stale(square4: MicArray,
+                                                          recording: np.ndarray) -> None:
+    loc = StreamingLocator(pipeline(square4))
+    out = stream_blocks(loc, blocks_of(recording))
+    src = StreamTargetSource(stale_s=1.0)
+    assert src.target_at(0.0) is None
+    src.offer(out[0], 0.0)  # before the first shot: nothing to say
+    assert src.target_at(0.1) is None
+    src.offer(out[-1], 5.0)
+    t = src.target_at(5.5)
+    assert t is not None and t.pan_rad == pytest.approx(out[-1].azimuth_rad)
+    assert t.tilt_rad == 0.0 and t.talker is not None
+    assert src.engine_t_s == 5.5
+    assert src.target_at(6.5) is None  # nothing new for more than stale_s

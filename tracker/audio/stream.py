@@ -1,0 +1,310 @@
+"""Streaming localisation: audio blocks in, the talker tracker's latest target out.
+
+:class:`StreamingLocator` takes blocks of multichannel audio as they arrive (from any
+:class:`~tracker.audio.sources.AudioSource`: a WAV file, a simulated room, live capture),
+keeps a ring buffer of the last few seconds, and for every analysis hop runs the same
+localizer windows (short, long ``fine_window_s``, ``prior_window_s``) and speech detector as
+the batch :class:`~tracker.audio.pipeline.Pipeline`, feeding one persistent
+:class:`~tracker.audio.tracking.TalkerTracker` frame by frame. Streaming a recording block by
+block gives the batch pipeline's frames and track (the speech detector is computed on a
+window of buffered audio with enough history for its noise floor and enough look-ahead for
+its modulation test, so its decisions match the whole-recording ones).
+
+A frame is processed once the audio reaches its window end plus the speech detector's
+look-ahead (about 0.3 s with the default VAD settings): that is the streaming latency on
+top of the half window.
+
+:class:`StreamTargetSource` exposes the latest target to the engine (``name``,
+``target_at``, see :mod:`tracker.targets`).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.audio.pipeline import FrameEstimate, Pipeline
+from tracker.audio.tracking import TalkerTracker, TrackPoint
+from tracker.audio.vad import SpeechDetector
+from tracker.errors import DataError
+from tracker.targets import Target
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class StreamTarget:
+    """The tracker's output after one streamed frame.
+
+    Attributes
+    ----------
+    t_s : window centre (s of stream time, from the first sample).
+    end_s : window end (s); the frame was computed once the audio reached ``ready_s``.
+    ready_s : stream time at which this target became available (window end + VAD look-ahead).
+    azimuth_rad, elevation_rad : camera target (elevation None if unknown); NaN azimuth
+        before the first shot.
+    shot : "none", "talker" or "wide".
+    talker_id : small integer per distinct talker direction seen (None unless shot is "talker").
+    talker_azimuth_rad : smoothed direction of the current talker (None if none).
+    confidence : the localizer's confidence for this frame's short window.
+    speech : the speech detector's decision for this frame.
+    estimate_azimuth_rad : the localizer's raw short-window azimuth.
+    """
+
+    t_s: float
+    end_s: float
+    ready_s: float
+    azimuth_rad: float
+    elevation_rad: float | None
+    shot: str
+    talker_id: int | None
+    talker_azimuth_rad: float | None
+    confidence: float
+    speech: bool
+    estimate_azimuth_rad: float
+
+
+class StreamingLocator:
+    """Incremental :class:`Pipeline`: :meth:`push` blocks, read :attr:`latest` (thread-safe).
+
+    Parameters
+    ----------
+    pipeline : the batch pipeline whose localizer, windows, VAD and tracker settings are used.
+    talker_separation_rad : talker directions further apart than this get different ids.
+    """
+
+    def __init__(self, pipeline: Pipeline, talker_separation_rad: float = math.radians(15.0)
+                 ) -> None:
+        self.pipeline = pipeline
+        fs = pipeline.fs_hz
+        w = pipeline.windows
+        self._n_win = int(round(w.window_s * fs))
+        self._n_hop = int(round(w.hop_s * fs))
+        self._n_fine = int(round(w.fine_window_s * fs)) if w.fine_window_s is not None else 0
+        # The optional third window of newer pipelines (absent: only short and long windows).
+        prior_s = getattr(w, "prior_window_s", None)
+        self._n_prior = int(round(prior_s * fs)) if prior_s is not None else 0
+        self._detector = SpeechDetector(fs, pipeline.vad)
+        d, v = self._detector, pipeline.vad
+        floor_frames = max(1, int(round(v.floor_window_s / v.hop_s)))
+        half = max(1, int(round(v.modulation_window_s / 2 / v.hop_s)))
+        # VAD context: history for the trailing noise floor and smoothing, look-ahead for the
+        # "after" half of the modulation test and the smoothing (frames, in samples).
+        self._vad_history = (floor_frames + half + 8) * d.hop + d.frame
+        self.lookahead = (half + 4) * d.hop + d.frame
+        fine_s, short_s = w.fine_window_s, w.window_s
+        self._lag_s = pipeline.fine_lag_fraction * 0.5 * (fine_s - short_s) if fine_s else 0.0
+        self._prior_lag_s = 0.5 * (prior_s - short_s) if prior_s else 0.0
+        self._separation_rad = float(talker_separation_rad)
+        self._tracker = TalkerTracker(pipeline.tracking)
+        self._buf = np.zeros((pipeline.array.n_mics, 0))
+        self._buf_start = 0  # absolute sample index of self._buf[:, 0]
+        self._next = 0  # index of the next frame to compute
+        self._talkers: list[float] = []
+        self._lock = threading.Lock()
+        self._latest: StreamTarget | None = None
+        self.frames: list[FrameEstimate] = []
+        self.keep_frames = False
+        self.compute_s = 0.0  # CPU (thread) time spent in push/finish, s
+
+    @property
+    def fs_hz(self) -> int:
+        return self.pipeline.fs_hz
+
+    @property
+    def samples_in(self) -> int:
+        """Samples received so far (per channel)."""
+        return self._buf_start + self._buf.shape[1]
+
+    @property
+    def latest(self) -> StreamTarget | None:
+        """The most recent target, or None before the first frame."""
+        with self._lock:
+            return self._latest
+
+    def push(self, block: FloatArray) -> list[StreamTarget]:
+        """Add a block, shape (n_mics, n_samples); returns the targets of the frames it completed."""
+        block = np.asarray(block, dtype=float)
+        n_mics = self.pipeline.array.n_mics
+        if block.ndim != 2 or block.shape[0] != n_mics:
+            got = block.shape[0] if block.ndim == 2 else f"shape {block.shape}"
+            raise DataError(f"audio block has {got} channel(s); "
+                            f"{self.pipeline.array.name} has {n_mics} mics")
+        if not np.all(np.isfinite(block)):
+            raise DataError("audio block contains NaN or infinite samples")
+        self._buf = np.concatenate([self._buf, block], axis=1)
+        return self._run(final=False)
+
+    def finish(self) -> list[StreamTarget]:
+        """The source ended: process the frames left (their VAD look-ahead is cut by the end)."""
+        return self._run(final=True)
+
+    def _run(self, final: bool) -> list[StreamTarget]:
+        import time
+
+        t0 = time.thread_time()
+        total = self.samples_in
+        ready = []
+        k = self._next
+        while True:
+            end = k * self._n_hop + self._n_win
+            if end > total or (not final and end + self.lookahead > total):
+                break
+            ready.append(k)
+            k += 1
+        out: list[StreamTarget] = []
+        if ready:
+            out = self._frames(ready, total)
+            self._next = k
+            self._trim()
+        self.compute_s += time.thread_time() - t0
+        return out
+
+    def _frames(self, ready: list[int], total: int) -> list[StreamTarget]:
+        fs, hop_v = self.fs_hz, self._detector.hop
+        first_start = ready[0] * self._n_hop
+        seg_lo = max(0, first_start - self._vad_history)
+        seg_lo -= seg_lo % hop_v  # VAD frames on the same grid as the batch run
+        seg_lo = max(seg_lo, self._buf_start)
+        seg = self._buf[:, seg_lo - self._buf_start : total - self._buf_start]
+        feats = self._detector.features(seg.mean(axis=0))
+        # Absolute frame times computed as the batch run does (same floats at the edges).
+        first_frame = seg_lo // hop_v
+        times = ((np.arange(feats.times_s.size) + first_frame) * hop_v
+                 + self._detector.frame / 2) / fs
+        feats = replace(feats, times_s=times)
+        out = []
+        for k in ready:
+            start = k * self._n_hop
+            end = start + self._n_win
+            start_s, end_s = start / fs, end / fs
+            speech = self._detector.window_is_speech(feats, start_s, end_s)
+            frame = self._estimate(start, end, speech)
+            frame = replace(frame, t_s=0.5 * (start_s + end_s), end_s=end_s)
+            if self.keep_frames:
+                self.frames.append(frame)
+            point = self._step(frame)
+            target = self._target(frame, point, min(total, end + self.lookahead) / fs)
+            with self._lock:
+                self._latest = target
+            out.append(target)
+        return out
+
+    def _window(self, lo: int, hi: int) -> FloatArray:
+        lo = max(lo, 0)
+        return self._buf[:, lo - self._buf_start : hi - self._buf_start]
+
+    def _estimate(self, start: int, end: int, speech: bool) -> FrameEstimate:
+        p = self.pipeline
+        est = p.localizer.locate(self._window(start, end))
+        fine = None
+        if speech and self._n_fine:
+            fine = p.localizer.locate(self._window(end - self._n_fine, end)).azimuth_rad
+        prior = None
+        if speech and self._n_prior:
+            response = getattr(p.localizer, "azimuth_response")  # noqa: B009
+            prior = response(self._window(end - self._n_prior, end),
+                             getattr(p, "prior_azimuth_rad", None))
+        extra = {"prior_power": prior} if self._n_prior else {}
+        return FrameEstimate(0.0, 0.0, est.azimuth_rad, est.elevation_rad, est.confidence,
+                             speech, fine, **extra)
+
+    def _step(self, f: FrameEstimate) -> TrackPoint:
+        """One tracker step with the arguments :meth:`Pipeline.track` gives it."""
+        if not self._n_prior:
+            return self._tracker.step(f.t_s, f.azimuth_rad, f.elevation_rad, f.confidence,
+                                      f.speech, f.fine_azimuth_rad, self._lag_s)
+        step: Any = self._tracker.step  # the prior arguments exist only in newer trackers
+        point: TrackPoint = step(
+            f.t_s, f.azimuth_rad, f.elevation_rad, f.confidence, f.speech, f.fine_azimuth_rad,
+            self._lag_s, getattr(self.pipeline, "prior_azimuth_rad", None),
+            getattr(f, "prior_power", None), self._prior_lag_s)
+        return point
+
+    def _target(self, f: FrameEstimate, p: TrackPoint, ready_s: float) -> StreamTarget:
+        talker_id = None
+        if p.shot == "talker" and p.talker_azimuth_rad is not None:
+            talker_id = self._talker_id(p.talker_azimuth_rad)
+        az = p.azimuth_rad if p.shot != "none" else math.nan
+        return StreamTarget(f.t_s, f.end_s, ready_s, float(az), p.elevation_rad, p.shot,
+                            talker_id, p.talker_azimuth_rad, float(f.confidence), f.speech,
+                            float(f.azimuth_rad))
+
+    def _talker_id(self, azimuth_rad: float) -> int:
+        """The nearest known talker direction within the separation, else a new talker."""
+        if self._talkers:
+            diffs = np.abs(np.angle(np.exp(1j * (np.asarray(self._talkers) - azimuth_rad))))
+            i = int(np.argmin(diffs))
+            if diffs[i] <= self._separation_rad:
+                self._talkers[i] = float(azimuth_rad)  # follow a walker
+                return i
+        self._talkers.append(float(azimuth_rad))
+        return len(self._talkers) - 1
+
+    def _trim(self) -> None:
+        start = self._next * self._n_hop
+        end = start + self._n_win
+        keep = min(start - self._vad_history, end - max(self._n_fine, self._n_prior, self._n_win))
+        keep = max(0, keep - self._detector.hop)
+        if keep > self._buf_start:
+            self._buf = self._buf[:, keep - self._buf_start :].copy()
+            self._buf_start = keep
+
+
+def stream_blocks(locator: StreamingLocator, blocks: Iterable[FloatArray]) -> list[StreamTarget]:
+    """Push every block, then finish: all targets in order (offline use and tests)."""
+    out: list[StreamTarget] = []
+    for block in blocks:
+        out.extend(locator.push(block))
+    out.extend(locator.finish())
+    return out
+
+
+class StreamTargetSource:
+    """The latest streamed target as an engine target source.
+
+    Producers call :meth:`offer` with a target and the engine time it applies from;
+    ``target_at(t_s)`` returns the newest one (None before the first shot, or when it was
+    offered more than ``stale_s`` of engine time ago: a stalled capture stops steering).
+    """
+
+    def __init__(self, name: str = "audio stream", stale_s: float | None = None) -> None:
+        self.name = name
+        self.stale_s = stale_s
+        self._lock = threading.Lock()
+        self._target: StreamTarget | None = None
+        self._from_s = -math.inf
+        self.engine_t_s = 0.0  # the last engine time seen in target_at (producers pace on it)
+
+    def offer(self, target: StreamTarget | None, engine_t_s: float) -> None:
+        """Publish ``target`` as applying from engine time ``engine_t_s`` (None clears it)."""
+        with self._lock:
+            self._target, self._from_s = target, engine_t_s
+
+    def target_at(self, t_s: float) -> Target | None:
+        self.engine_t_s = t_s
+        with self._lock:
+            target, from_s = self._target, self._from_s
+        if target is None or not math.isfinite(target.azimuth_rad):
+            return None
+        if self.stale_s is not None and t_s - from_s > self.stale_s:
+            return None
+        if target.shot == "wide":
+            label = "wide shot"
+        elif target.talker_id is not None and target.talker_azimuth_rad is not None:
+            label = f"talker {target.talker_id + 1} at {math.degrees(target.talker_azimuth_rad):+.0f}°"
+        else:
+            label = None
+        return Target(
+            pan_rad=float(target.azimuth_rad),
+            tilt_rad=0.0,  # a planar array cannot resolve elevation; the camera keeps eye level
+            talker=label,
+            azimuth_rad=target.estimate_azimuth_rad if target.speech else None,
+            elevation_rad=target.elevation_rad if target.speech else None,
+        )
