@@ -118,3 +118,20 @@ def test_the_engine_follows_a_wav_streamed_on_its_clock(tmp_path: Path) -> None:
     assert abs(math.degrees(st.pan_rad) - TALKER_2_DEG) < 5.0, seen
     # CPU of the streaming localizer, ms per s of audio: far below real time.
     assert stream.cpu_ms_per_s < 500.0
+
+
+def test_the_configured_audio_input_reaches_the_stream(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Regression: app.rig started the audio with only the data folder, so a config-file
+    ``audio_input`` was validated but never used."""
+    import app.audio
+    from app.rig import attach_audio
+
+    wav = tmp_path / "room.wav"
+    two_talkers_wav(wav)
+    settings = load_settings(None, data_dir=tmp_path, audio_input=f"wav:{wav}")
+    seen: dict[str, object] = {}
+    monkeypatch.setattr(app.audio, "start_meeting_source", lambda *a, **kw: seen.update(kw) or "handle")
+    assert attach_audio(object(), settings) == ("handle", None)
+    assert seen["audio_input"] == f"wav:{wav}"
