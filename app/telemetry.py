@@ -13,26 +13,11 @@ import contextlib
 import logging
 import math
 from collections.abc import AsyncIterator
-from typing import Any, Protocol
+from typing import Any
+
+from tracker.telemetry import TelemetrySnapshot as Snapshot
 
 log = logging.getLogger("app.telemetry")
-
-
-class Snapshot(Protocol):
-    """What the hub reads from an engine telemetry snapshot (tracker.engine.TelemetrySnapshot)."""
-
-    t_s: float
-    pan_rad: float
-    tilt_rad: float
-    pan_target_rad: float
-    tilt_target_rad: float
-    pan_u_v: float
-    tilt_u_v: float
-    mode: str
-    tracking: bool
-    source: str | None
-    estimate_azimuth_rad: float | None
-    estimate_elevation_rad: float | None
 
 
 def _deg(x: float | None) -> float | None:
