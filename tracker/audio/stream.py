@@ -3,7 +3,7 @@
 :class:`StreamingLocator` takes blocks of multichannel audio as they arrive (from any
 :class:`~tracker.audio.sources.AudioSource`: a WAV file, a simulated room, live capture),
 keeps a ring buffer of the last few seconds, and for every analysis hop runs the same
-localizer windows (short, long ``fine_window_s``, ``prior_window_s``) and speech detector as
+localizer windows (short, long ``fine_window_s``) and speech detector as
 the batch :class:`~tracker.audio.pipeline.Pipeline`, feeding one persistent
 :class:`~tracker.audio.tracking.TalkerTracker` frame by frame. Streaming a recording block by
 block gives the batch pipeline's frames and track (the speech detector is computed on a
@@ -24,7 +24,6 @@ import math
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -87,9 +86,6 @@ class StreamingLocator:
         self._n_win = int(round(w.window_s * fs))
         self._n_hop = int(round(w.hop_s * fs))
         self._n_fine = int(round(w.fine_window_s * fs)) if w.fine_window_s is not None else 0
-        # The optional third window of newer pipelines (absent: only short and long windows).
-        prior_s = getattr(w, "prior_window_s", None)
-        self._n_prior = int(round(prior_s * fs)) if prior_s is not None else 0
         self._detector = SpeechDetector(fs, pipeline.vad)
         d, v = self._detector, pipeline.vad
         floor_frames = max(1, int(round(v.floor_window_s / v.hop_s)))
@@ -100,7 +96,6 @@ class StreamingLocator:
         self.lookahead = (half + 4) * d.hop + d.frame
         fine_s, short_s = w.fine_window_s, w.window_s
         self._lag_s = pipeline.fine_lag_fraction * 0.5 * (fine_s - short_s) if fine_s else 0.0
-        self._prior_lag_s = 0.5 * (prior_s - short_s) if prior_s else 0.0
         self._separation_rad = float(talker_separation_rad)
         self._tracker = TalkerTracker(pipeline.tracking)
         self._buf = np.zeros((pipeline.array.n_mics, 0))
@@ -206,26 +201,13 @@ class StreamingLocator:
         fine = None
         if speech and self._n_fine:
             fine = p.localizer.locate(self._window(end - self._n_fine, end)).azimuth_rad
-        prior = None
-        if speech and self._n_prior:
-            response = getattr(p.localizer, "azimuth_response")  # noqa: B009
-            prior = response(self._window(end - self._n_prior, end),
-                             getattr(p, "prior_azimuth_rad", None))
-        extra = {"prior_power": prior} if self._n_prior else {}
         return FrameEstimate(0.0, 0.0, est.azimuth_rad, est.elevation_rad, est.confidence,
-                             speech, fine, **extra)
+                             speech, fine)
 
     def _step(self, f: FrameEstimate) -> TrackPoint:
         """One tracker step with the arguments :meth:`Pipeline.track` gives it."""
-        if not self._n_prior:
-            return self._tracker.step(f.t_s, f.azimuth_rad, f.elevation_rad, f.confidence,
-                                      f.speech, f.fine_azimuth_rad, self._lag_s)
-        step: Any = self._tracker.step  # the prior arguments exist only in newer trackers
-        point: TrackPoint = step(
-            f.t_s, f.azimuth_rad, f.elevation_rad, f.confidence, f.speech, f.fine_azimuth_rad,
-            self._lag_s, getattr(self.pipeline, "prior_azimuth_rad", None),
-            getattr(f, "prior_power", None), self._prior_lag_s)
-        return point
+        return self._tracker.step(f.t_s, f.azimuth_rad, f.elevation_rad, f.confidence,
+                                  f.speech, f.fine_azimuth_rad, self._lag_s)
 
     def _target(self, f: FrameEstimate, p: TrackPoint, ready_s: float) -> StreamTarget:
         talker_id = None
@@ -250,7 +232,7 @@ class StreamingLocator:
     def _trim(self) -> None:
         start = self._next * self._n_hop
         end = start + self._n_win
-        keep = min(start - self._vad_history, end - max(self._n_fine, self._n_prior, self._n_win))
+        keep = min(start - self._vad_history, end - max(self._n_fine, self._n_win))
         keep = max(0, keep - self._detector.hop)
         if keep > self._buf_start:
             self._buf = self._buf[:, keep - self._buf_start :].copy()

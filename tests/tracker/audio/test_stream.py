@@ -104,21 +104,6 @@ def test_a_room_source_streams(square4: MicArray, recording: np.ndarray) -> None
     assert len(out) == len(pipeline(square4).run(recording).track)
 
 
-@pytest.mark.skipif("prior_window_s" not in WindowSettings.__dataclass_fields__,
-                    reason="this pipeline has no prior window")
-def test_streaming_matches_the_batch_pipeline_with_a_prior_window(
-        square4: MicArray, recording: np.ndarray) -> None:
-    windows = WindowSettings(0.3, 0.1, 1.5, prior_window_s=0.8)  # type: ignore[call-arg]
-
-    def make() -> Pipeline:
-        return Pipeline(square4, FS_HZ, "srp_phat", windows, localizer_options=HALF_PLANE)
-
-    batch = make().run(recording)
-    out = stream_blocks(StreamingLocator(make()), blocks_of(recording))
-    batch_az = np.array([p.azimuth_rad if p.shot != "none" else math.nan for p in batch.track])
-    np.testing.assert_allclose([t.azimuth_rad for t in out], batch_az, atol=1e-6, equal_nan=True)
-
-
 def test_wrong_channel_count_or_nan_is_a_data_error(square4: MicArray) -> None:
     loc = StreamingLocator(pipeline(square4))
     with pytest.raises(DataError, match="2 channel"):
