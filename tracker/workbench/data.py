@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,19 +52,18 @@ class Measurement:
         )
 
 
-def _parse_float(text: str, line: int, column: str) -> float:
+def _parse_float(text: str, where: str, column: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise DataError(f"line {line}: {column} is {text.strip()!r}, not a number") from None
+        raise DataError(f"{where}: {column} is {text.strip()!r}, not a number") from None
     if not math.isfinite(value):
-        raise DataError(f"line {line}: {column} is {text.strip()!r}")
+        raise DataError(f"{where}: {column} is {text.strip()!r}")
     return value
 
 
-def parse_log(text: str, source: str = "<data>") -> Measurement:
-    """Parse CSV text in the log format; raise DataError naming the line or column."""
-    reader = csv.reader(io.StringIO(text))
+def _read_rows(reader: Iterator[list[str]], source: str) -> list[tuple[float, float, float]]:
+    """The (t, u, theta) rows of a log; raises DataError naming the line or column."""
     try:
         header = [h.strip() for h in next(reader)]
     except StopIteration:
@@ -80,8 +80,21 @@ def parse_log(text: str, source: str = "<data>") -> Measurement:
             continue
         if len(row) < len(header):
             raise DataError(f"{source}: line {line_no}: {len(row)} fields, header has {len(header)}")
-        t, u, th = (_parse_float(row[i], line_no, c) for i, c in zip(idx, REQUIRED_COLUMNS, strict=True))
+        t, u, th = (
+            _parse_float(row[i], f"{source}: line {line_no}", c)
+            for i, c in zip(idx, REQUIRED_COLUMNS, strict=True)
+        )
         rows.append((t, u, th))
+    return rows
+
+
+def parse_log(text: str, source: str = "<data>") -> Measurement:
+    """Parse CSV text in the log format; raise DataError naming the line or column."""
+    reader = csv.reader(io.StringIO(text))
+    try:
+        rows = _read_rows(reader, source)
+    except csv.Error as exc:  # e.g. a stray carriage return inside a field
+        raise DataError(f"{source}: line {reader.line_num}: not valid CSV ({exc})") from None
     if not rows:
         raise DataError(f"{source}: no data rows after the header")
     arr = np.asarray(rows, dtype=float)
