@@ -87,13 +87,7 @@ def step_of(
 )
 async def get_gains(axis: str, svc: Svc, who: Viewer) -> GainsOut:
     check_axis(axis)
-    gains = svc.engine.gains(axis)
-    return GainsOut(
-        axis=axis,  # type: ignore[arg-type]  # checked by check_axis
-        gains=_plain(gains) | {"type": type(gains).__name__},
-        margins=margins_of(svc, axis, gains),
-        min_phase_margin_deg=svc.settings.min_phase_margin_deg,
-    )
+    return _gains_out(svc, axis)
 
 
 @router.post(
@@ -156,6 +150,11 @@ async def put_model(axis: str, body: DesignModelIn, svc: Svc, who: Engineer) -> 
         svc.engine.set_model(axis, model_from_json(version["model"]))
     except ConfigError as exc:
         raise Refused(str(exc)) from None
+    return _gains_out(svc, axis)
+
+
+def _gains_out(svc: Service, axis: str) -> GainsOut:
+    """The axis's current gains, their margins and the configured floor."""
     gains = svc.engine.gains(axis)
     return GainsOut(
         axis=axis,  # type: ignore[arg-type]  # checked by check_axis

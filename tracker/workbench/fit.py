@@ -30,7 +30,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -460,26 +460,11 @@ def fit_model(
     x0 = coords.encode(model0)
     # Contact events make the backlash cost step-like at small scales: difference it coarsely.
     steps = np.array([COARSE_DIFF_STEP if n == "backlash.width" else DIFF_STEP for n in coords.names])
-    sol = least_squares(
-        residuals,
-        x0,
-        bounds=(coords.lower, coords.upper),
-        method="trf",
-        x_scale=1.0,
-        diff_step=steps,
-        xtol=1e-8,
-        ftol=1e-8,
-        max_nfev=MAX_EVALUATIONS,
-    )
-    if "backlash.width" in coords.names:
-        # The width's cost is step-like; the first pass moved the other parameters. Search the
-        # width again around its value with them in place, then polish everything once more.
-        m1 = coords.decode(model0, sol.x)
-        w1 = m1.params["backlash.width"]
-        m2 = grid_on_prediction(meas, est, m1, "backlash.width", [w1 * f for f in FINE_GRID], k, stride=1)
-        sol = least_squares(
+
+    def solve(start: FloatArray) -> Any:
+        return least_squares(
             residuals,
-            coords.encode(m2),
+            start,
             bounds=(coords.lower, coords.upper),
             method="trf",
             x_scale=1.0,
@@ -488,6 +473,15 @@ def fit_model(
             ftol=1e-8,
             max_nfev=MAX_EVALUATIONS,
         )
+
+    sol = solve(x0)
+    if "backlash.width" in coords.names:
+        # The width's cost is step-like; the first pass moved the other parameters. Search the
+        # width again around its value with them in place, then polish everything once more.
+        m1 = coords.decode(model0, sol.x)
+        w1 = m1.params["backlash.width"]
+        m2 = grid_on_prediction(meas, est, m1, "backlash.width", [w1 * f for f in FINE_GRID], k, stride=1)
+        sol = solve(coords.encode(m2))
     fitted = coords.decode(model0, sol.x)
     resid = sol.fun * noise
     # The solver's Jacobian uses tiny forward steps: one stick/slip decision flipping inside a
