@@ -87,13 +87,10 @@ class StreamingLocator:
         self._n_hop = int(round(w.hop_s * fs))
         self._n_fine = int(round(w.fine_window_s * fs)) if w.fine_window_s is not None else 0
         self._detector = SpeechDetector(fs, pipeline.vad)
-        d, v = self._detector, pipeline.vad
-        floor_frames = max(1, int(round(v.floor_window_s / v.hop_s)))
-        half = max(1, int(round(v.modulation_window_s / 2 / v.hop_s)))
         # VAD context: history for the trailing noise floor and smoothing, look-ahead for the
-        # "after" half of the modulation test and the smoothing (frames, in samples).
-        self._vad_history = (floor_frames + half + 8) * d.hop + d.frame
-        self.lookahead = (half + 4) * d.hop + d.frame
+        # decision on a window's last frames (samples).
+        self._vad_history = self._detector.history_samples
+        self.lookahead = self._detector.lookahead_samples
         fine_s, short_s = w.fine_window_s, w.window_s
         self._lag_s = pipeline.fine_lag_fraction * 0.5 * (fine_s - short_s) if fine_s else 0.0
         self._separation_rad = float(talker_separation_rad)

@@ -100,6 +100,25 @@ class SpeechDetector:
         freqs = np.fft.rfftfreq(self.nfft, 1.0 / fs_hz)
         self._band = (freqs >= 200.0) & (freqs <= 4000.0)
 
+    @property
+    def lookahead_samples(self) -> int:
+        """Samples after a window's end the decision on its last frames depends on.
+
+        The "after" half of the modulation test, the 5-frame level smoothing and one frame:
+        a live system has a window's speech decision this long after the window ends.
+        """
+        s = self.settings
+        half = max(1, int(round(s.modulation_window_s / 2 / s.hop_s)))
+        return (half + 4) * self.hop + self.frame
+
+    @property
+    def history_samples(self) -> int:
+        """Samples before a window the decision depends on (noise floor, smoothing, modulation)."""
+        s = self.settings
+        floor_frames = max(1, int(round(s.floor_window_s / s.hop_s)))
+        half = max(1, int(round(s.modulation_window_s / 2 / s.hop_s)))
+        return (floor_frames + half + 8) * self.hop + self.frame
+
     def features(self, mono: FloatArray) -> VadFeatures:
         """Features of ``mono``, shape (n_samples,); see :class:`VadFeatures`."""
         mono = np.asarray(mono, dtype=float)
