@@ -27,10 +27,16 @@ class VadSettings:
       ``harmonicity_min``: typing, door slams, coughs and other noise bursts are not periodic;
     * at least ``speech_band_min`` of the energy in 200-4000 Hz: low rumbles and door thuds
       are not;
-    * the level stands at least ``modulation_min_db`` above its minimum both in the half
-      ``modulation_window_s`` before and the half after the frame: speech comes in syllables,
-      while a fan or hum that was just switched on only rises (the noise floor needs
-      ``floor_window_s`` to learn it). This looks ahead by half that window.
+    * the level stands at least ``modulation_min_db`` above its minimum in the half
+      ``modulation_window_s`` before the frame (speech comes in syllables; a steady fan or hum
+      does not rise);
+    * a machine tone is not a voice: when ``causal`` (the default), a frame whose pitch has
+      stayed within ``steady_pitch_tolerance`` (relative) over the pitched frames of the
+      trailing ``steady_window_s`` is rejected (a voice glides and wobbles; a fan's blade-pass
+      whine or mains hum that was just switched on rises in level but holds its pitch), and a
+      frame needs ``min_pitched_frames`` pitched frames in that window to be judged at all.
+      With ``causal=False`` the level must also dip in the half window *after* the frame
+      instead: the older rule, which makes each decision wait ``modulation_window_s / 2``.
 
     A window is speech when its voiced frames add up to ``min_voiced_s`` (a lone periodic
     click or a cough's voiced instant is too short).
@@ -46,6 +52,10 @@ class VadSettings:
     min_voiced_s: float = 0.1
     modulation_min_db: float = 3.0
     modulation_window_s: float = 0.5
+    causal: bool = True
+    steady_window_s: float = 0.15
+    steady_pitch_tolerance: float = 0.01
+    min_pitched_frames: int = 3
 
     def __post_init__(self) -> None:
         if not 0 < self.hop_s <= self.frame_s:
@@ -53,6 +63,13 @@ class VadSettings:
         lo, hi = self.pitch_range_hz
         if not 30.0 <= lo < hi <= 1000.0:
             raise ConfigError(f"VAD pitch_range_hz={self.pitch_range_hz} outside 30-1000 Hz")
+        if not 0.0 <= self.steady_pitch_tolerance < 0.5:
+            raise ConfigError(
+                f"VAD steady_pitch_tolerance={self.steady_pitch_tolerance} outside [0, 0.5)")
+        if self.min_pitched_frames < 1 or self.steady_window_s < self.hop_s:
+            raise ConfigError(
+                f"VAD min_pitched_frames={self.min_pitched_frames} must be >= 1 and "
+                f"steady_window_s={self.steady_window_s} >= hop_s={self.hop_s}")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -104,10 +121,12 @@ class SpeechDetector:
     def lookahead_samples(self) -> int:
         """Samples after a window's end the decision on its last frames depends on.
 
-        The "after" half of the modulation test, the 5-frame level smoothing and one frame:
-        a live system has a window's speech decision this long after the window ends.
+        Causal: one frame (a frame's time is its centre). Otherwise also the "after" half of
+        the modulation test and the 5-frame level smoothing.
         """
         s = self.settings
+        if s.causal:
+            return self.frame
         half = max(1, int(round(s.modulation_window_s / 2 / s.hop_s)))
         return (half + 4) * self.hop + self.frame
 
@@ -134,30 +153,59 @@ class SpeechDetector:
         low = signal.sosfilt(self._sos_low, mono)[index] * self._window
         acf = np.fft.irfft(np.abs(np.fft.rfft(low, self.nfft, axis=-1)) ** 2, axis=-1)
         acf = acf[:, : self.frame] / (acf[:, :1] + 1e-20) / self._window_acf[None, : self.frame]
-        harmonicity = np.clip(acf[:, self._lags].max(axis=-1), 0.0, 1.0)
+        in_range = acf[:, self._lags]
+        harmonicity = np.clip(in_range.max(axis=-1), 0.0, 1.0)
+        # Pitch period: the shortest lag that is a local peak within 15 % of the highest (the
+        # highest alone jumps between one and two periods from frame to frame).
+        padded = acf[:, self._lags[0] - 1 : self._lags[-1] + 2]
+        local_peak = (in_range >= padded[:, :-2]) & (in_range >= padded[:, 2:])
+        near_top = in_range >= 0.85 * in_range.max(axis=-1, keepdims=True)
+        period = self._lags[np.argmax(local_peak & near_top, axis=-1)]
         floor_frames = max(1, int(round(self.settings.floor_window_s / self.settings.hop_s)))
-        smoothed = uniform_filter1d(level_db, size=5, mode="nearest")
+        s = self.settings
+        if s.causal:  # trailing 5-frame mean
+            smoothed = uniform_filter1d(level_db, size=5, mode="nearest", origin=2)
+        else:
+            smoothed = uniform_filter1d(level_db, size=5, mode="nearest")
         # Causal minimum over the trailing window: shift the centred filter's origin.
         floor_db = minimum_filter1d(smoothed, size=floor_frames, mode="nearest",
                                     origin=(floor_frames - 1) // 2)
-        s = self.settings
         half = max(1, int(round(s.modulation_window_s / 2 / s.hop_s)))
-        # Rise over the lowest level in the half window before AND after the frame: syllables
-        # dip on both sides, a fan being switched on only on one.
-        dip_before = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
-                                                 origin=(half - 1) // 2)
-        dip_after = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
-                                                origin=-(half // 2))
-        modulation_db = np.minimum(dip_before, dip_after)
+        # Rise over the lowest level in the half window before (and, not causal, after) the
+        # frame: syllables dip, a steady fan or hum does not.
+        modulation_db = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
+                                                    origin=(half - 1) // 2)
+        pitched = harmonicity >= s.harmonicity_min
+        if s.causal:
+            pitched &= ~self._steady_pitch(period.astype(float), pitched)
+        else:
+            dip_after = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
+                                                    origin=-(half // 2))
+            modulation_db = np.minimum(modulation_db, dip_after)
         voiced = (
             (level_db >= floor_db + s.level_above_floor_db)
-            & (harmonicity >= s.harmonicity_min)
+            & pitched
             & (speech_band >= s.speech_band_min)
             & (modulation_db >= s.modulation_min_db)
         )
         times = (np.arange(n_frames) * self.hop + self.frame / 2) / self.fs_hz
         return VadFeatures(times, level_db, floor_db, harmonicity, speech_band, modulation_db,
                            voiced)
+
+    def _steady_pitch(self, lag: FloatArray, pitched: BoolArray) -> BoolArray:
+        """Frames to reject as a machine tone, or as too early to judge (see VadSettings)."""
+        s = self.settings
+        n = max(1, int(round(s.steady_window_s / s.hop_s)))
+        inf = np.full(n - 1, np.inf)
+        hi_lag = np.where(pitched, lag, -np.inf)
+        lo_lag = np.where(pitched, lag, np.inf)
+        windows_hi = np.lib.stride_tricks.sliding_window_view(np.concatenate([-inf, hi_lag]), n)
+        windows_lo = np.lib.stride_tricks.sliding_window_view(np.concatenate([inf, lo_lag]), n)
+        count = np.lib.stride_tricks.sliding_window_view(
+            np.concatenate([np.zeros(n - 1), pitched.astype(float)]), n).sum(axis=-1)
+        spread = (windows_hi.max(axis=-1) - windows_lo.min(axis=-1)) / np.maximum(lag, 1.0)
+        too_early = count < s.min_pitched_frames
+        return np.asarray(too_early | (spread <= s.steady_pitch_tolerance * 1.0000001), dtype=bool)
 
     def window_is_speech(self, features: VadFeatures, start_s: float, end_s: float) -> bool:
         """True when the voiced frames in ``[start_s, end_s)`` add up to ``min_voiced_s``."""

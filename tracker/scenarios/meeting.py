@@ -28,6 +28,7 @@ from tracker.audio.array import MicArray, load_array
 from tracker.audio.pipeline import Pipeline, WindowSettings
 from tracker.audio.speech import talker_speech
 from tracker.audio.tracking import TrackerSettings
+from tracker.audio.vad import SpeechDetector
 from tracker.errors import ConfigError
 
 FloatArray = NDArray[np.float64]
@@ -190,8 +191,10 @@ def run_meeting(seed: int = 0, duration_s: float = 60.0,
     frames = pipeline.estimate_frames(recording.audio)
     track = pipeline.track(frames)
     times = np.arange(int(round(duration_s / _DT_S)), dtype=float) * _DT_S
-    # Each target applies from the end of its window: that is when a live system has it.
-    ends = np.array([f.end_s for f in frames])
+    # Each target applies from the moment a live system has it: the window's end plus the
+    # speech detector's look-ahead (the streaming locator's ``ready_s``).
+    lookahead_s = SpeechDetector(recording.fs_hz, pipeline.vad).lookahead_samples / recording.fs_hz
+    ends = np.array([f.end_s for f in frames]) + lookahead_s
     targets = np.array([p.azimuth_rad for p in track], dtype=float)
     index = np.searchsorted(ends, times, side="right") - 1
     target_rad = np.asarray(np.where(index >= 0, targets[np.clip(index, 0, None)], 0.0), dtype=float)

@@ -75,19 +75,58 @@ def test_non_speech_never_makes_a_speech_window(make_noise):
     assert not any(windows)
 
 
+@pytest.mark.parametrize("causal", [True, False])
 @pytest.mark.parametrize("snr_db", [30.0, 10.0])
-def test_speech_windows_are_found(snr_db):
-    speech = synthetic_speech(DURATION_S, FS_HZ, seed=4)
-    rng = np.random.default_rng(0)
-    noise_std = np.sqrt(np.mean(speech.samples[speech.active] ** 2) / 10 ** (snr_db / 10))
-    x = speech.samples + noise_std * rng.standard_normal(speech.samples.size)
+def test_speech_windows_are_found(snr_db, causal):
+    detector = SpeechDetector(FS_HZ, VadSettings(causal=causal))
+    hits, speech_windows = 0, 0
+    for seed in range(4, 8):
+        speech = synthetic_speech(DURATION_S, FS_HZ, seed=seed)
+        rng = np.random.default_rng(seed)
+        noise_std = np.sqrt(np.mean(speech.samples[speech.active] ** 2) / 10 ** (snr_db / 10))
+        x = speech.samples + noise_std * rng.standard_normal(speech.samples.size)
+        features = detector.features(x)
+        starts = np.arange(0.0, DURATION_S - 0.5, 0.1)
+        truth = [speech.active[int(s * FS_HZ) : int((s + 0.5) * FS_HZ)].mean() > 0.5
+                 for s in starts]
+        found = [detector.window_is_speech(features, s, s + 0.5) for s in starts]
+        hits += sum(f for f, t in zip(found, truth, strict=True) if t)
+        speech_windows += sum(truth)
+    assert hits >= 0.9 * speech_windows
+
+
+def test_causal_decisions_do_not_wait_for_the_future():
+    """A causal detector decides each frame from the past (and the frame) only: cutting the
+    signal right after a frame leaves its decision unchanged, so a live system has it when
+    the frame ends (``lookahead_samples``)."""
+    speech = synthetic_speech(DURATION_S, FS_HZ, seed=5)
+    x = speech.samples + 0.01 * np.random.default_rng(1).standard_normal(speech.samples.size)
+    detector = SpeechDetector(FS_HZ)
+    full = detector.features(x)
+    assert detector.lookahead_samples == detector.frame
+    for cut_s in (0.7, 1.33, 2.5, 3.1):
+        n = int(cut_s * FS_HZ)
+        part = detector.features(x[:n])
+        known = full.times_s * FS_HZ + detector.frame / 2 <= n
+        assert np.array_equal(part.voiced[known[: part.voiced.size]], full.voiced[known])
+    # The older, non-causal rule does depend on the future:
+    older = SpeechDetector(FS_HZ, VadSettings(causal=False))
+    assert older.lookahead_samples > 0.25 * FS_HZ
+
+
+def test_a_machine_tone_switched_on_is_not_speech():
+    """A pitched tone (blade-pass whine with harmonics) that rises in level like a syllable
+    onset but holds its pitch is rejected once a few pitched frames show its pitch standing
+    still: no analysis window (0.3 s, as in the meeting) becomes speech."""
+    t = np.arange(int(DURATION_S * FS_HZ)) / FS_HZ
+    tone = sum(np.sin(2 * np.pi * 220.0 * k * t) for k in range(1, 10))
+    x = 0.001 * np.random.default_rng(2).standard_normal(t.size)
+    on = t >= 1.0
+    x[on] += 0.1 * tone[on] * np.minimum(1.0, (t[on] - 1.0) / 0.05)
     detector = SpeechDetector(FS_HZ)
     features = detector.features(x)
-    starts = np.arange(0.0, DURATION_S - 0.5, 0.1)
-    truth = [speech.active[int(s * FS_HZ) : int((s + 0.5) * FS_HZ)].mean() > 0.5 for s in starts]
-    found = [detector.window_is_speech(features, s, s + 0.5) for s in starts]
-    hits = sum(f for f, t in zip(found, truth, strict=True) if t)
-    assert hits >= 0.9 * sum(truth)
+    windows = [detector.window_is_speech(features, s, s + 0.3) for s in np.arange(0, 3.7, 0.02)]
+    assert not any(windows)
 
 
 def test_speech_over_a_running_fan_is_still_speech():
