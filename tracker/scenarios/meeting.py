@@ -25,9 +25,9 @@ from numpy.typing import NDArray
 
 from tracker.audio import room
 from tracker.audio.array import MicArray, load_array
-from tracker.audio.pipeline import Pipeline, WindowSettings
+from tracker.audio.pipeline import FrameEstimate, Pipeline, WindowSettings
 from tracker.audio.speech import talker_speech
-from tracker.audio.tracking import TrackerSettings
+from tracker.audio.tracking import TrackerSettings, TrackPoint
 from tracker.audio.vad import SpeechDetector
 from tracker.errors import ConfigError
 
@@ -133,10 +133,10 @@ def build_meeting(seed: int, duration_s: float, settings: MeetingSettings, array
             position = room.position_from_direction(placement, *_SEATS[k], mouth_height_m=1.25)
             talkers.append(room.static_talker(samples, active, position))
             continue
-        if not waypoints:
-            waypoints = [_WALK[0], _WALK[0]]
-            waypoints_t += [duration_s]
-        waypoints = [waypoints[0], *waypoints]
+        if waypoints:
+            waypoints = [waypoints[0], *waypoints]  # she stands at her start until her first turn
+        else:  # she never got the floor: she stands at the start of her walk
+            waypoints, waypoints_t = [_WALK[0], _WALK[0]], [0.0, duration_s]
         path = np.array([room.position_from_direction(placement, az, d, 1.6)
                          for az, d in waypoints])
         talkers.append(room.Talker(samples, active, np.array(waypoints_t), path))
@@ -181,15 +181,45 @@ def run_meeting(seed: int = 0, duration_s: float = 60.0,
                 settings: MeetingSettings | None = None) -> MeetingResult:
     """Simulate a meeting and score how the camera framed it."""
     settings = settings or MeetingSettings()
+    recording, turns, frames = meeting_frames(seed, duration_s, settings)
+    return camera_result(recording, turns, frames, settings, seed).result
+
+
+def meeting_frames(seed: int, duration_s: float, settings: MeetingSettings
+                   ) -> tuple[room.Recording, tuple[Turn, ...], tuple[FrameEstimate, ...]]:
+    """The meeting's audio and the localizer's per-window estimates (the costly part)."""
     if not 10.0 <= duration_s <= 600.0:
         raise ConfigError(f"meeting duration_s={duration_s} outside 10-600 s")
     array = load_array(_ARRAYS_DIR / settings.array_file)
     recording, turns = build_meeting(seed, duration_s, settings, array)
-    pipeline = Pipeline(array, recording.fs_hz, settings.method, settings.windows,
-                        tracking=settings.tracking,
-                        localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)})
-    frames = pipeline.estimate_frames(recording.audio)
+    frames = _pipeline(settings, array, recording.fs_hz).estimate_frames(recording.audio)
+    return recording, turns, frames
+
+
+def _pipeline(settings: MeetingSettings, array: MicArray, fs_hz: int) -> Pipeline:
+    return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
+                    localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)})
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CameraRun:
+    """The camera's side of a meeting: the tracker's targets, the pan angle, the scores."""
+
+    times_s: FloatArray
+    target_rad: FloatArray
+    pan_rad: FloatArray
+    track: tuple[TrackPoint, ...]
+    result: MeetingResult
+
+
+def camera_result(recording: room.Recording, turns: tuple[Turn, ...],
+                  frames: tuple[FrameEstimate, ...], settings: MeetingSettings, seed: int
+                  ) -> CameraRun:
+    """Track the frames, drive the pan axis of the twin with the targets and score it."""
+    array = load_array(_ARRAYS_DIR / settings.array_file)
+    pipeline = _pipeline(settings, array, recording.fs_hz)
     track = pipeline.track(frames)
+    duration_s = recording.audio.shape[1] / recording.fs_hz
     times = np.arange(int(round(duration_s / _DT_S)), dtype=float) * _DT_S
     # Each target applies from the moment a live system has it: the window's end plus the
     # speech detector's look-ahead (the streaming locator's ``ready_s``).
@@ -199,7 +229,8 @@ def run_meeting(seed: int = 0, duration_s: float = 60.0,
     index = np.searchsorted(ends, times, side="right") - 1
     target_rad = np.asarray(np.where(index >= 0, targets[np.clip(index, 0, None)], 0.0), dtype=float)
     pan_rad, plant = _pan_response(target_rad)
-    return score_meeting(recording, turns, times, pan_rad, targets, seed, plant)
+    result = score_meeting(recording, turns, times, pan_rad, targets, seed, plant)
+    return CameraRun(times, target_rad, pan_rad, track, result)
 
 
 def score_meeting(recording: room.Recording, turns: tuple[Turn, ...], times: FloatArray,

@@ -42,3 +42,22 @@ def test_short_meeting_figures(short_meeting):
 def test_meeting_duration_is_checked():
     with pytest.raises(ConfigError, match="duration_s"):
         run_meeting(duration_s=2.0)
+
+
+def test_a_walker_who_never_gets_the_floor_still_has_a_path():
+    """Regression: a meeting in which the walker never talks crashed (path times and points
+    of different lengths) when its ground truth was asked for."""
+    from tracker.audio.array import load_array
+    from tracker.scenarios.meeting import _ARRAYS_DIR, _SEATS, build_meeting
+
+    settings = MeetingSettings()
+    walker = len(_SEATS)
+    seed = next(s for s in range(200)
+                if all(t.talker != walker
+                       for t in plan_turns(12.0, walker + 1, np.random.default_rng(s), settings)))
+    recording, turns = build_meeting(seed, 12.0, settings,
+                                     load_array(_ARRAYS_DIR / settings.array_file))
+    assert all(t.talker != walker for t in turns)
+    directions = recording.directions(np.array([0.0, 6.0, 11.9]))
+    assert directions.shape == (walker + 1, 3, 2)
+    assert np.all(np.isfinite(directions))
