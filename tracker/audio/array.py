@@ -1,5 +1,11 @@
 """Microphone array geometry: load and validate the JSON layout, list pairs, rotate head frames.
 
+The JSON file is ``{"mics": [[x, y, z], ...], "mount": "room" | "head"}``. ``mount`` is
+optional (default ``"room"``): a room-mounted array is fixed to the camera base, so its frame
+is the base frame; a head-mounted one rides on the pan/tilt head (as in the seed), so its
+estimates are relative to the head and the head's encoder angles turn them into the base
+frame (:mod:`tracker.audio.head`).
+
 Array frame: x forward, y left, z up (metres). A direction is given by its azimuth (from +x toward
 +y) and elevation (up from the horizontal plane); its unit vector is
 ``u = [cos(el) cos(az), cos(el) sin(az), sin(el)]``. A plane wave from ``u`` reaches microphone
@@ -23,6 +29,8 @@ FloatArray = NDArray[np.float64]
 
 # Extents below this are treated as "flat" along that axis (an array cannot resolve it).
 _FLAT_TOLERANCE_M = 1e-3
+MOUNTS = ("room", "head")
+_KEYS = ("mics", "mount")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -35,13 +43,19 @@ class MicArray:
         Microphone positions in metres (x forward, y left, z up).
     name : str
         Where the layout came from (file name or a label), used in error messages.
+    mount : {"room", "head"}
+        "room": fixed to the camera base (estimates are in the base frame); "head": carried
+        on the pan/tilt head (estimates are in the head frame, x along the camera axis).
     """
 
     positions_m: FloatArray
     name: str = "array"
+    mount: str = "room"
     pairs: tuple[tuple[int, int], ...] = field(init=False)
 
     def __post_init__(self) -> None:
+        if self.mount not in MOUNTS:
+            raise ConfigError(f'{self.name}: mount is {self.mount!r}; expected "room" or "head"')
         positions = np.asarray(self.positions_m, dtype=float)
         if positions.ndim != 2 or positions.shape[1] != 3:
             raise ConfigError(
@@ -64,6 +78,11 @@ class MicArray:
         object.__setattr__(
             self, "pairs", tuple((i, j) for i in range(n) for j in range(i + 1, n))
         )
+
+    @property
+    def head_mounted(self) -> bool:
+        """True when the array rides on the pan/tilt head (its estimates need the encoder angles)."""
+        return self.mount == "head"
 
     @property
     def n_mics(self) -> int:
@@ -120,16 +139,27 @@ def unit_vector(azimuth_rad: FloatArray | float, elevation_rad: FloatArray | flo
 
 
 def array_from_dict(data: object, name: str = "array") -> MicArray:
-    """Build a :class:`MicArray` from ``{"mics": [[x, y, z], ...]}`` (metres)."""
+    """Build a :class:`MicArray` from ``{"mics": [[x, y, z], ...], "mount": "room" | "head"}``.
+
+    Positions in metres; ``mount`` is optional (default "room"). Unknown keys are refused so
+    that a misspelt ``mount`` cannot silently leave a head-mounted array in the room.
+    """
     if not isinstance(data, dict) or "mics" not in data:
         raise ConfigError(f'{name}: expected a JSON object {{"mics": [[x, y, z], ...]}}')
+    unknown = sorted(str(k) for k in data if k not in _KEYS)
+    if unknown:
+        raise ConfigError(f"{name}: unknown key(s) {', '.join(map(repr, unknown))}; "
+                          f"an array file has {', '.join(map(repr, _KEYS))}")
+    mount = data.get("mount", "room")
+    if mount not in MOUNTS:  # also catches non-strings (numbers, null, lists)
+        raise ConfigError(f'{name}: "mount" is {json.dumps(mount)}; expected "room" or "head"')
     mics = data["mics"]
     if not isinstance(mics, list) or not all(
         isinstance(m, list) and len(m) == 3 and all(isinstance(v, int | float) for v in m)
         for m in mics
     ):
         raise ConfigError(f"{name}: 'mics' must be a list of [x, y, z] number triples in metres")
-    return MicArray(np.array(mics, dtype=float), name=name)
+    return MicArray(np.array(mics, dtype=float), name=name, mount=str(mount))
 
 
 def load_array(path: str | Path) -> MicArray:
@@ -144,17 +174,20 @@ def load_array(path: str | Path) -> MicArray:
     return array_from_dict(data, name=str(path))
 
 
-def rotation_world_head(pan_rad: float, tilt_rad: float) -> FloatArray:
+def rotation_world_head(pan_rad: FloatArray | float, tilt_rad: FloatArray | float) -> FloatArray:
     """``R_world_head`` for a head panned by ``pan_rad`` (about +z) then tilted up by ``tilt_rad``.
 
     Maps vectors in the head frame (x along the camera axis) into the base/world frame;
-    shape (3, 3). Tilting up lifts +x toward +z, a rotation of ``-tilt`` about +y.
+    shape ``broadcast(pan, tilt).shape + (3, 3)`` (so (3, 3) for scalars). Tilting up lifts
+    +x toward +z, a rotation of ``-tilt`` about +y.
     """
-    cp, sp = np.cos(pan_rad), np.sin(pan_rad)
-    ct, st = np.cos(tilt_rad), np.sin(tilt_rad)
-    r_pan = np.array([[cp, -sp, 0.0], [sp, cp, 0.0], [0.0, 0.0, 1.0]])
-    r_tilt = np.array([[ct, 0.0, -st], [0.0, 1.0, 0.0], [st, 0.0, ct]])
-    return np.asarray(r_pan @ r_tilt)
+    pan, tilt = np.broadcast_arrays(np.asarray(pan_rad, dtype=float),
+                                    np.asarray(tilt_rad, dtype=float))
+    cp, sp, ct, st = np.cos(pan), np.sin(pan), np.cos(tilt), np.sin(tilt)
+    zero = np.zeros_like(cp)
+    # R_pan @ R_tilt written out: columns are the head's x, y, z axes in the base frame.
+    rows = [[cp * ct, -sp, -cp * st], [sp * ct, cp, -sp * st], [st, zero, ct]]
+    return np.asarray(np.stack([np.stack(r, axis=-1) for r in rows], axis=-2))
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,6 +14,14 @@ A frame is processed once the audio reaches its window end plus the speech detec
 look-ahead (about 0.3 s with the default VAD settings): that is the streaming latency on
 top of the half window.
 
+A head-mounted array (``"mount": "head"``) measures in the head frame: the producer gives the
+head's encoder angles on the stream's clock (``push(block, head_pan_rad=..., head_tilt_rad=...)``
+for the angles while the block was recorded, or time-stamped readings in :attr:`head_poses`),
+and every window's estimate is turned into the base frame with the head's power-weighted mean
+rotation over that window (:mod:`tracker.audio.head`) before the tracker sees it; targets and
+kept frames are in the base frame. A room-mounted array's estimates are already in the base
+frame: nothing changes for it.
+
 :class:`StreamTargetSource` exposes the latest target to the engine (``name``,
 ``target_at``, see :mod:`tracker.targets`).
 """
@@ -28,10 +36,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from tracker.audio.head import MAX_SWEEP_RAD, HeadPoses, frame_to_base, window_motion
 from tracker.audio.pipeline import FrameEstimate, Pipeline
 from tracker.audio.tracking import TalkerTracker, TrackPoint
 from tracker.audio.vad import SpeechDetector
-from tracker.errors import DataError
+from tracker.errors import ConfigError, DataError
 from tracker.targets import Target
 
 FloatArray = NDArray[np.float64]
@@ -53,7 +62,7 @@ class StreamTarget:
     talker_azimuth_rad : smoothed direction of the current talker (None if none).
     confidence : the localizer's confidence for this frame's short window.
     speech : the speech detector's decision for this frame.
-    estimate_azimuth_rad : the localizer's raw short-window azimuth.
+    estimate_azimuth_rad : the localizer's raw short-window azimuth (base frame).
     """
 
     t_s: float
@@ -76,11 +85,20 @@ class StreamingLocator:
     ----------
     pipeline : the batch pipeline whose localizer, windows, VAD and tracker settings are used.
     talker_separation_rad : talker directions further apart than this get different ids.
+    head_poses : for a head-mounted array, the head's angle history (stream clock) that a
+        producer fills; a new empty one by default. Refused for a room-mounted array.
     """
 
-    def __init__(self, pipeline: Pipeline, talker_separation_rad: float = math.radians(15.0)
-                 ) -> None:
+    def __init__(self, pipeline: Pipeline, talker_separation_rad: float = math.radians(15.0),
+                 head_poses: HeadPoses | None = None) -> None:
         self.pipeline = pipeline
+        array = pipeline.array
+        if head_poses is not None and not array.head_mounted:
+            raise ConfigError(f"{array.name} is room-mounted: head angles do not apply "
+                              '(set "mount": "head" if it rides on the pan/tilt head)')
+        self.head_poses = head_poses if head_poses is not None else (
+            HeadPoses() if array.head_mounted else None)
+        self.max_head_sweep_rad = MAX_SWEEP_RAD
         fs = pipeline.fs_hz
         w = pipeline.windows
         self._n_win = int(round(w.window_s * fs))
@@ -120,8 +138,14 @@ class StreamingLocator:
         with self._lock:
             return self._latest
 
-    def push(self, block: FloatArray) -> list[StreamTarget]:
-        """Add a block, shape (n_mics, n_samples); returns the targets of the frames it completed."""
+    def push(self, block: FloatArray, head_pan_rad: float | None = None,
+             head_tilt_rad: float | None = None) -> list[StreamTarget]:
+        """Add a block, shape (n_mics, n_samples); returns the targets of the frames it completed.
+
+        ``head_pan_rad``/``head_tilt_rad`` (head-mounted arrays only): the head's angles while
+        the block was recorded, recorded at the block's centre time (finer time-stamped
+        readings go to :attr:`head_poses` directly).
+        """
         block = np.asarray(block, dtype=float)
         n_mics = self.pipeline.array.n_mics
         if block.ndim != 2 or block.shape[0] != n_mics:
@@ -130,6 +154,14 @@ class StreamingLocator:
                             f"{self.pipeline.array.name} has {n_mics} mics")
         if not np.all(np.isfinite(block)):
             raise DataError("audio block contains NaN or infinite samples")
+        if head_pan_rad is not None or head_tilt_rad is not None:
+            if self.head_poses is None:
+                raise ConfigError(f"{self.pipeline.array.name} is room-mounted: head angles "
+                                  "do not apply")
+            if head_pan_rad is None or head_tilt_rad is None:
+                raise ConfigError("give both head_pan_rad and head_tilt_rad")
+            centre_s = (self.samples_in + 0.5 * block.shape[1]) / self.fs_hz
+            self.head_poses.add(centre_s, float(head_pan_rad), float(head_tilt_rad))
         self._buf = np.concatenate([self._buf, block], axis=1)
         return self._run(final=False)
 
@@ -198,8 +230,22 @@ class StreamingLocator:
         fine = None
         if speech and self._n_fine:
             fine = p.localizer.locate(self._window(end - self._n_fine, end)).azimuth_rad
-        return FrameEstimate(0.0, 0.0, est.azimuth_rad, est.elevation_rad, est.confidence,
-                             speech, fine)
+        frame = FrameEstimate(0.0, 0.0, est.azimuth_rad, est.elevation_rad, est.confidence,
+                              speech, fine)
+        if self.head_poses is None:
+            return frame
+        return self._to_base(frame, start, end)
+
+    def _to_base(self, frame: FrameEstimate, start: int, end: int) -> FrameEstimate:
+        """A head-frame estimate in the base frame (the head's rotation over each window)."""
+        fs, poses = self.fs_hz, self.head_poses
+        assert poses is not None
+        short = window_motion(poses, self._window(start, end), start / fs, end / fs)
+        fine = None
+        if frame.fine_azimuth_rad is not None:
+            lo = max(0, end - self._n_fine)
+            fine = window_motion(poses, self._window(lo, end), lo / fs, end / fs)
+        return frame_to_base(frame, short, fine, self.max_head_sweep_rad)
 
     def _step(self, f: FrameEstimate) -> TrackPoint:
         """One tracker step with the arguments :meth:`Pipeline.track` gives it."""

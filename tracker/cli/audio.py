@@ -9,9 +9,11 @@ import sys
 import numpy as np
 
 from tracker.audio.array import load_array
+from tracker.audio.head import check_coverage, locate_head_mounted, read_encoder_log
 from tracker.audio.localizers import DEFAULT_LOCALIZER, LOCALIZERS
 from tracker.audio.pipeline import LocateResult, Pipeline, WindowSettings
 from tracker.audio.sources import read_wav
+from tracker.errors import ConfigError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -24,7 +26,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     locate.add_argument("recording", metavar="REC.wav", help="multichannel WAV, one channel per mic")
     locate.add_argument("--array", required=True, metavar="ARRAY.json",
-                        help='mic geometry {"mics": [[x, y, z], ...]} in metres')
+                        help='mic geometry {"mics": [[x, y, z], ...], "mount": "room"|"head"} '
+                             "in metres")
+    locate.add_argument("--encoder", metavar="LOG.csv", default=None,
+                        help="head angles during the recording, for a head-mounted array: CSV "
+                             "t (s from the first sample), pan, tilt (rad; or pan_deg, tilt_deg), "
+                             "or RUN.csv for the RUN_pan.csv/RUN_tilt.csv logs of --record")
     locate.add_argument("--method", default=DEFAULT_LOCALIZER, choices=sorted(LOCALIZERS),
                         help=f"localizer (default {DEFAULT_LOCALIZER})")
     locate.add_argument("--window-s", type=float, default=0.5, help="analysis window (s)")
@@ -32,7 +39,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     locate.add_argument("--fine-window-s", type=float, default=1.5,
                         help="longer window that refines the tracked talker (s); 0 turns it off")
     locate.add_argument("--front-only", action="store_true",
-                        help="search only -90°..90° azimuth (array on a wall or under a camera)")
+                        help="search only -90°..90° azimuth of the array's frame (array on a wall "
+                             "or under a camera)")
     locate.add_argument("--json", action="store_true", help="print the JSON contract")
     locate.set_defaults(func=run_locate)
     audio.set_defaults(func=lambda args: _help(audio))
@@ -44,7 +52,11 @@ def _help(parser: argparse.ArgumentParser) -> int:
 
 
 def run_locate(args: argparse.Namespace) -> int:
-    """``tracker audio locate``: print the JSON contract or a readable summary."""
+    """``tracker audio locate``: print the JSON contract or a readable summary.
+
+    Directions are in the base frame: a head-mounted array's estimates are turned with the
+    head's angles from ``--encoder`` (required for such an array, refused for a room one).
+    """
     array = load_array(args.array)
     fs_hz, audio = read_wav(args.recording)
     options = {"azimuth_range_rad": (-np.pi / 2, np.pi / 2)} if args.front_only else {}
@@ -54,7 +66,19 @@ def run_locate(args: argparse.Namespace) -> int:
     pipeline = Pipeline(array, fs_hz, args.method,
                         WindowSettings(args.window_s, args.hop_s, fine_s),
                         localizer_options=options)
-    result = pipeline.run(audio)
+    if array.head_mounted:
+        if args.encoder is None:
+            raise ConfigError(f"{array.name} is head-mounted (\"mount\": \"head\"): give the "
+                              "head's angles during the recording with --encoder LOG.csv "
+                              "(columns t, pan, tilt; one row if the head did not move)")
+        poses = read_encoder_log(args.encoder)
+        check_coverage(poses, audio.shape[1] / fs_hz, 0.25, str(args.encoder))
+        result = locate_head_mounted(pipeline, audio, poses)
+    elif args.encoder is not None:
+        raise ConfigError(f"--encoder applies to head-mounted arrays; {array.name} is "
+                          'room-mounted (add "mount": "head" if it rides on the pan/tilt head)')
+    else:
+        result = pipeline.run(audio)
     if args.json:
         json.dump(result.to_dict(), sys.stdout)
         sys.stdout.write("\n")

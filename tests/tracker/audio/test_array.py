@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from tracker.audio.array import array_from_dict, head_to_world, load_array, unit_vector
+from tracker.audio.array import (
+    MicArray,
+    array_from_dict,
+    head_to_world,
+    load_array,
+    rotation_world_head,
+    unit_vector,
+)
 from tracker.errors import ConfigError
 
 from .conftest import ARRAYS_DIR
@@ -72,3 +82,54 @@ def test_array_json_roundtrip(tmp_path):
     path = tmp_path / "a.json"
     path.write_text(json.dumps({"mics": [[0.03, 0, 0], [-0.03, 0, 0], [0, 0.03, 0]]}))
     assert load_array(path).n_mics == 3
+
+
+def test_mount_defaults_to_the_room_and_the_seed_layout_rides_on_the_head(tmp_path):
+    path = tmp_path / "a.json"
+    path.write_text(json.dumps({"mics": [[0.03, 0, 0], [-0.03, 0, 0]]}))
+    assert load_array(path).mount == "room" and not load_array(path).head_mounted
+    path.write_text(json.dumps({"mics": [[0.03, 0, 0], [-0.03, 0, 0]], "mount": "head"}))
+    assert load_array(path).head_mounted
+    # The seed added the encoder angle to each estimate (chapter 5): its pairs rode on the head.
+    assert load_array(ARRAYS_DIR / "seed_pairs.json").mount == "head"
+    assert load_array(ARRAYS_DIR / "square4_65mm.json").mount == "room"
+
+
+@pytest.mark.parametrize(
+    ("mount", "shown"),
+    [("ceiling", '"ceiling"'), ("Head", '"Head"'), (1, "1"), (None, "null"), (["head"], '["head"]')],
+    ids=["unknown-word", "wrong-case", "number", "null", "list"],
+)
+def test_a_bad_mount_names_the_file_and_the_value(tmp_path, mount, shown):
+    path = tmp_path / "bad_mount.json"
+    path.write_text(json.dumps({"mics": [[0.03, 0, 0], [-0.03, 0, 0]], "mount": mount}))
+    with pytest.raises(ConfigError) as err:
+        load_array(path)
+    message = str(err.value)
+    assert "bad_mount.json" in message and shown in message and '"room" or "head"' in message
+
+
+def test_a_misspelt_key_is_refused_not_ignored(tmp_path):
+    path = tmp_path / "typo.json"
+    path.write_text(json.dumps({"mics": [[0.03, 0, 0], [-0.03, 0, 0]], "mounting": "head"}))
+    with pytest.raises(ConfigError, match="typo.json.*'mounting'"):
+        load_array(path)
+
+
+def test_mic_array_is_frozen_and_checks_its_mount():
+    array = MicArray(np.array([[0.03, 0, 0], [-0.03, 0, 0]]), name="x", mount="head")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        array.mount = "room"  # type: ignore[misc]
+    with pytest.raises(ConfigError, match="x: mount is 'wall'"):
+        MicArray(np.array([[0.03, 0, 0], [-0.03, 0, 0]]), name="x", mount="wall")
+
+
+@settings(max_examples=100, deadline=None)
+@given(pan=st.floats(-4.0, 4.0), tilt=st.floats(-1.5, 1.5))
+def test_head_rotation_is_a_proper_rotation_and_vectorises(pan, tilt):
+    r = rotation_world_head(pan, tilt)
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    stacked = rotation_world_head(np.array([pan, 0.0]), np.array([tilt, 0.0]))
+    np.testing.assert_allclose(stacked[0], r, atol=1e-15)
+    np.testing.assert_allclose(stacked[1], np.eye(3), atol=1e-15)

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from tracker.audio import room
+from tracker.audio.array import load_array
+from tracker.audio.head_room import simulate_head_mounted
 from tracker.audio.sources import write_wav
 from tracker.audio.speech import synthetic_speech
 from tracker.cli import main
@@ -110,3 +112,77 @@ def test_bad_array_file(tmp_path, recording_wav, capsys):
     path.write_text(json.dumps({"mics": [[0, 0, 0]]}))
     assert main(["audio", "locate", recording_wav, "--array", str(path)]) == 2
     assert "at least 2 microphones" in _error_line(capsys)
+
+
+# -- a head-mounted array: --encoder gives the head's angles; output stays in the base frame --
+
+HEAD_T_S = np.array([0.0, 1.5, 2.1, 4.0])  # the head turns from -20° to 30° while she talks
+HEAD_PAN_DEG = np.array([-20.0, -20.0, 30.0, 30.0])
+HEAD_TILT_DEG = 10.0
+
+
+@pytest.fixture(scope="module")
+def head_recording(tmp_path_factory):
+    """(wav, array json, encoder csv): a talker at 35° (base) heard by a head-mounted square."""
+    folder = tmp_path_factory.mktemp("head")
+    array_path = folder / "head_square.json"
+    array_path.write_text(json.dumps({"mics": example_array("square4_65mm").positions_m.tolist(),
+                                      "mount": "head"}))
+    array = load_array(array_path)
+    settings = room.RoomSettings(rt60_s=0.3, snr_db=20.0, ism_order=6)
+    placement = room.centre_placement(settings)
+    speech = synthetic_speech(4.0, FS_HZ, seed=8)
+    position = room.position_from_direction(placement, np.deg2rad(35.0), 2.0)
+    rec = simulate_head_mounted(settings, array, placement.position_m,
+                                [room.static_talker(speech.samples, speech.active, position)],
+                                HEAD_T_S, np.deg2rad(HEAD_PAN_DEG), np.full(4, np.deg2rad(HEAD_TILT_DEG)))
+    wav = folder / "head.wav"
+    write_wav(wav, FS_HZ, rec.audio)
+    t = np.arange(0.0, 4.005, 0.01)
+    encoder = folder / "encoder.csv"
+    encoder.write_text("t,pan_deg,tilt_deg\n" + "".join(
+        f"{x:.3f},{np.interp(x, HEAD_T_S, HEAD_PAN_DEG):.4f},{HEAD_TILT_DEG}\n" for x in t))
+    return str(wav), str(array_path), str(encoder)
+
+
+def test_locate_with_a_head_mounted_array_reports_the_base_frame(head_recording, capsys):
+    wav, array, encoder = head_recording
+    assert main(["audio", "locate", wav, "--array", array, "--encoder", encoder, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data) == {"fs", "frames", "track"}  # the contract is unchanged
+    for frame in data["frames"]:
+        assert set(frame) == {"t", "azimuth_deg", "elevation_deg", "confidence", "speech"}
+    steady = [f["azimuth_deg"] for f in data["frames"]
+              if f["speech"] and f["confidence"] > 0 and not 1.4 < f["t"] < 2.9]
+    assert len(steady) > 10
+    errors = np.abs(np.array(steady) - 35.0)
+    assert np.median(errors) < 2.5, steady
+    assert abs(data["track"][-1]["azimuth_deg"] - 35.0) < 5.0
+    # Without the head's angles the same recording says 5° (35 - 30): the encoder did the work.
+    plain = str(ARRAYS_DIR / "square4_65mm.json")
+    assert main(["audio", "locate", wav, "--array", plain, "--json"]) == 0
+    last = [f["azimuth_deg"] for f in json.loads(capsys.readouterr().out)["frames"]
+            if f["speech"] and f["t"] > 2.9]
+    assert abs(np.median(last) - 5.0) < 4.0
+
+
+def test_a_head_mounted_array_without_encoder_angles_is_a_one_line_error(head_recording, capsys):
+    wav, array, _ = head_recording
+    assert main(["audio", "locate", wav, "--array", array]) == 2
+    line = _error_line(capsys)
+    assert "head_square.json is head-mounted" in line and "--encoder" in line
+
+
+def test_encoder_angles_for_a_room_array_are_refused(head_recording, capsys):
+    wav, _, encoder = head_recording
+    assert main(["audio", "locate", wav, "--array", SQUARE, "--encoder", encoder]) == 2
+    assert "room-mounted" in _error_line(capsys)
+
+
+def test_an_encoder_log_that_stops_early_is_a_one_line_error(head_recording, tmp_path, capsys):
+    wav, array, _ = head_recording
+    short = tmp_path / "short.csv"
+    short.write_text("t,pan,tilt\n0,0,0\n1.5,0.2,0\n")
+    assert main(["audio", "locate", wav, "--array", array, "--encoder", str(short)]) == 2
+    line = _error_line(capsys)
+    assert "short.csv" in line and "0.00-1.50 s" in line and "0-4.00 s" in line
