@@ -114,3 +114,44 @@ def test_registry_names_and_unknown_method(square4):
 def test_wrong_channel_count_is_a_data_error(square4):
     with pytest.raises(DataError, match="expected \\(4, n_samples\\)"):
         make_localizer("srp_phat", square4, FS_HZ).locate(np.zeros((2, 8000)))
+
+
+def _smoothed_covariance(spectra, size_t, size_f):
+    """Reference: neighbourhood-mean spatial covariance by scipy; shape (t, f, m, m)."""
+    from scipy.ndimage import uniform_filter
+
+    outer = spectra[:, None] * np.conj(spectra[None, :])
+    size = (1, 1, size_t, size_f)
+    cov = uniform_filter(outer.real, size=size) + 1j * uniform_filter(outer.imag, size=size)
+    return np.moveaxis(cov, (0, 1), (-2, -1))
+
+
+def test_dominance_share_is_the_largest_eigenvalue_share():
+    """The compiled test equals eigvalsh of the smoothed covariance where one wave dominates."""
+    from tracker.audio.localizers.tf_kernels import dominance_share
+
+    rng = np.random.default_rng(3)
+    delays = np.array([0.0, 1.3, 2.1, 0.8])[:, None, None]  # samples; a plane wave's phase is smooth in f
+    steering = np.exp(-2j * np.pi * np.arange(40)[None, None, :] / 80 * delays)
+    source = rng.standard_normal((1, 12, 40)) + 1j * rng.standard_normal((1, 12, 40))
+    noise = 0.1 * (rng.standard_normal((4, 12, 40)) + 1j * rng.standard_normal((4, 12, 40)))
+    spectra = steering * source + noise
+    share = dominance_share(spectra, 3, 5, 8, np.ones((12, 40), dtype=bool))
+    eig = np.linalg.eigvalsh(_smoothed_covariance(spectra, 3, 5))
+    np.testing.assert_allclose(share, eig[..., -1] / eig.sum(axis=-1), atol=1e-6)
+    assert share.min() > 0.9
+    # Independent noise on every mic (a diffuse field at high frequency) is far from rank one.
+    diffuse = rng.standard_normal((4, 12, 40)) + 1j * rng.standard_normal((4, 12, 40))
+    assert np.median(dominance_share(diffuse, 3, 5, 8, np.ones((12, 40), dtype=bool))) < 0.6
+
+
+def test_phat_votes_match_the_numpy_sum():
+    from tracker.audio.localizers.tf_kernels import phat_votes
+
+    rng = np.random.default_rng(4)
+    spectra = rng.standard_normal((4, 9, 30)) + 1j * rng.standard_normal((4, 9, 30))
+    weights = rng.uniform(size=(9, 30)) * (rng.uniform(size=(9, 30)) > 0.5)
+    first, second = np.array([0, 0, 1, 2]), np.array([1, 3, 2, 3])
+    cross = spectra[first] * np.conj(spectra[second])
+    expected = (cross / np.abs(cross) * weights[None]).sum(axis=1)
+    np.testing.assert_allclose(phat_votes(spectra, weights, first, second), expected, rtol=1e-9)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import uniform_filter
+from numpy.typing import NDArray
 
 from tracker.audio.array import MicArray
 from tracker.audio.localizers.base import (
@@ -22,8 +22,7 @@ from tracker.audio.localizers.spectra import (
     onset_weights,
     stft,
 )
-
-_EPS = 1e-12
+from tracker.audio.localizers.tf_kernels import dominance_share, phat_votes
 
 
 class SrpDpd:
@@ -65,54 +64,44 @@ class SrpDpd:
         self._mask = band_mask(self.fs_hz, self.settings)
         az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad, azimuth_range_rad)
         self._grid = SrpGrid(array, self.fs_hz, az, el, self.settings)
+        self._first, self._second = (np.array(m, dtype=np.int64) for m in zip(*array.pairs, strict=True))
 
-    def dominance(self, spectra: ComplexArray) -> FloatArray:
+    def dominance(self, spectra: ComplexArray, wanted: NDArray[np.bool_] | None = None
+                  ) -> FloatArray:
         """Share of the largest eigenvalue in each smoothed spatial covariance.
 
         Parameters
         ----------
         spectra : ndarray, shape (n_mics, n_frames, n_freq)
+        wanted : ndarray of bool, shape (n_frames, n_freq), optional
+            Bins to evaluate (the rest are 0); all by default.
 
         Returns
         -------
-        ndarray, shape (n_frames, n_freq), values in [1/n_mics, 1]
+        ndarray, shape (n_frames, n_freq), values in [0, 1] (1/n_mics in a diffuse field)
         """
-        outer = spectra[:, None] * np.conj(spectra[None, :])  # (m, m, t, f)
-        size = (1, 1, self.smooth_frames, self.smooth_bins)
-        cov = uniform_filter(outer.real, size=size) + 1j * uniform_filter(outer.imag, size=size)
-        cov = np.ascontiguousarray(np.moveaxis(cov, (0, 1), (-2, -1)))  # (t, f, m, m)
-        trace = np.einsum("...ii->...", cov).real
-        # Largest eigenvalue by power iteration from the strongest column: a few batched 4x4
-        # products instead of a full eigendecomposition per bin (10x faster, and exact enough
-        # where one plane wave dominates, which is all the test needs).
-        diag = np.einsum("...ii->...i", cov).real
-        v = np.take_along_axis(cov, np.argmax(diag, axis=-1)[..., None, None], axis=-1)[..., 0]
-        for _ in range(self.power_iterations):
-            v = np.einsum("...ij,...j->...i", cov, v)
-            v /= np.linalg.norm(v, axis=-1, keepdims=True) + _EPS
-        cv = np.einsum("...ij,...j->...i", cov, v)
-        largest = np.sum(np.conj(v) * cv, axis=-1).real
-        return np.asarray(np.clip(largest / (trace + _EPS), 0.0, 1.0))
+        if wanted is None:
+            wanted = np.ones(spectra.shape[1:], dtype=bool)
+        return dominance_share(np.ascontiguousarray(spectra), self.smooth_frames, self.smooth_bins,
+                               self.power_iterations, wanted)
 
     def locate(self, frame: FloatArray) -> DirectionEstimate:
         """Direction of the strongest direct path in ``frame``, shape (n_mics, n_samples)."""
         frame = check_frame(frame, self.array, self.settings.nfft)
         spectra = stft(frame, self.settings.nfft)[:, :, self._mask]
-        dominance = self.dominance(spectra)
         power = np.sum(np.abs(spectra) ** 2, axis=0)
         loud = power >= np.median(power)
+        dominance = self.dominance(spectra, loud)
         threshold = np.quantile(dominance[loud], 1.0 - self.keep_fraction) if loud.any() else 1.0
         weights = (loud & (dominance >= threshold)).astype(float)
         if self.onset_power > 0:
             weights = weights * onset_weights(spectra, self.onset_power)
-        i, j = np.array(self.array.pairs).T
-        cross_tf = spectra[i] * np.conj(spectra[j])
-        cross_tf = cross_tf / (np.abs(cross_tf) + _EPS) * weights[None]
         votes = weights.sum(axis=0)  # (n_freq_in_band,)
         n_used = max(int(np.count_nonzero(votes)), 1)
         cross = np.zeros((len(self.array.pairs), self._mask.size), dtype=complex)
         # Bins with more dominant frames weigh more; a coherent plane wave still peaks at 1.
-        cross[:, self._mask] = cross_tf.sum(axis=1) * (n_used / max(votes.sum(), 1.0))
+        cross[:, self._mask] = phat_votes(spectra, weights, self._first, self._second) * (
+            n_used / max(votes.sum(), 1.0))
         g = gcc(cross, self.settings)
         peak = self._grid.peak(g)
         return DirectionEstimate(
