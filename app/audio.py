@@ -12,6 +12,13 @@ The input is the ``audio_input`` setting (``TRACKER_AUDIO_INPUT``):
   the device is missing the status says why (``audio`` field) and the console keeps manual
   pointing.
 
+The array is the ``array_file`` setting (default: the shipped 4-mic square); the simulated
+meeting is rendered for it. A head-mounted array (``"mount": "head"``) works with live capture:
+each block carries the engine's measured pan and tilt, and the stream turns every window's
+estimate into the base frame with the head's rotation over that window. The simulated meeting
+and a WAV replay cannot follow the head (their audio does not turn with it), so with a
+head-mounted array they say so in the status instead of steering the camera wrongly.
+
 The localizer runs in a background thread (a block batch at a time), never on the event loop.
 Until the first shot the source says nothing and the engine holds. :class:`MeetingSource`
 (the batch replay of a :class:`TrackTable`) is kept as the offline reference.
@@ -33,6 +40,7 @@ from numpy.typing import NDArray
 from tracker.targets import Target
 
 if TYPE_CHECKING:
+    from tracker.audio.array import MicArray
     from tracker.audio.pipeline import Pipeline
 
 log = logging.getLogger("app.audio")
@@ -131,26 +139,38 @@ class MeetingSource:
         )
 
 
-def meeting_pipeline(fs_hz: int, array: Any = None) -> Pipeline:
-    """The meeting's localizer, windows and tracker settings for audio at ``fs_hz``."""
+def load_meeting_array(array_file: Path | str | None = None) -> MicArray:
+    """The configured array (``array_file`` setting), or the meeting's shipped one."""
     from tracker.audio.array import load_array
+    from tracker.scenarios.meeting import MeetingSettings
+
+    return load_array(array_file if array_file is not None
+                      else ARRAYS_DIR / MeetingSettings().array_file)
+
+
+def meeting_pipeline(fs_hz: int, array: Any = None) -> Pipeline:
+    """The meeting's localizer, windows and tracker settings for audio at ``fs_hz``.
+
+    A room-mounted array sits on the wall under the camera, so only -90°..90° is searched (no
+    mirror image of the wall); a head-mounted one turns away from the wall with the camera,
+    so it searches every azimuth of its own frame.
+    """
     from tracker.audio.pipeline import Pipeline
     from tracker.scenarios.meeting import MeetingSettings
 
     settings = MeetingSettings()
-    array = array if array is not None else load_array(ARRAYS_DIR / settings.array_file)
+    array = array if array is not None else load_meeting_array()
+    options = {} if array.head_mounted else {"azimuth_range_rad": (-np.pi / 2, np.pi / 2)}
     return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
-                    localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)})
+                    localizer_options=options)
 
 
-def build_meeting_audio(seed: int, duration_s: float) -> tuple[int, FloatArray]:
+def build_meeting_audio(seed: int, duration_s: float, array_file: Path | str | None = None
+                        ) -> tuple[int, FloatArray]:
     """The simulated meeting's multichannel audio (tens of seconds of CPU): (fs_hz, (n_mics, n))."""
-    from tracker.audio.array import load_array
     from tracker.scenarios.meeting import MeetingSettings, build_meeting
 
-    settings = MeetingSettings()
-    array = load_array(ARRAYS_DIR / settings.array_file)
-    recording, _ = build_meeting(seed, duration_s, settings, array)
+    recording, _ = build_meeting(seed, duration_s, MeetingSettings(), load_meeting_array(array_file))
     return int(recording.fs_hz), np.asarray(recording.audio, dtype=float)
 
 
@@ -170,13 +190,16 @@ def load_audio(path: Path) -> tuple[int, FloatArray] | None:
         return None
 
 
-def settings_digest() -> str:
-    """A short digest of the meeting settings: a cache made with others is not reused."""
+def settings_digest(array: MicArray | None = None) -> str:
+    """A short digest of the meeting settings and the array's geometry: a cache made with
+    others is not reused."""
     import hashlib
 
     from tracker.scenarios.meeting import MeetingSettings
 
-    return hashlib.sha256(f"{AUDIO_CACHE_VERSION}:{MeetingSettings()!r}".encode()).hexdigest()[:10]
+    mics = "" if array is None else np.round(array.positions_m, 6).tobytes().hex()
+    text = f"{AUDIO_CACHE_VERSION}:{MeetingSettings()!r}:{mics}"
+    return hashlib.sha256(text.encode()).hexdigest()[:10]
 
 
 class AudioStream:
@@ -186,10 +209,11 @@ class AudioStream:
     ...", or why audio is unavailable); ``cpu_ms_per_s`` the localizer's CPU per second of audio.
     """
 
-    def __init__(self, engine: Any, label: str) -> None:
+    def __init__(self, engine: Any, label: str, array: MicArray | None = None) -> None:
         from tracker.audio.stream import StreamTargetSource
 
         self.engine = engine
+        self.array = array if array is not None else load_meeting_array()
         self.source = StreamTargetSource(name=label, stale_s=2.0)
         self.note = "starting"
         self.worker: Any = None  # the subprocess building the meeting audio, while it runs
@@ -234,7 +258,7 @@ class AudioStream:
         from tracker.audio.stream import StreamingLocator
         from tracker.errors import DataError
 
-        pipeline = meeting_pipeline(fs_hz)
+        pipeline = meeting_pipeline(fs_hz, self.array)
         if n_channels != pipeline.array.n_mics:
             raise DataError(f"the input has {n_channels} channel(s) but {pipeline.array.name} "
                             f"has {pipeline.array.n_mics} mics")
@@ -264,12 +288,24 @@ class AudioStream:
                 self.source.offer(target, t0 + target.ready_s)
 
     def listen(self, live: Any) -> None:
-        """Stream live capture until closed (the device paces it)."""
+        """Stream live capture until closed (the device paces it).
+
+        With a head-mounted array every block carries the engine's measured pan and tilt at
+        the moment it arrived, time-stamped at the block's end on the stream's clock (the
+        clocks are aligned at the first block); the stream interpolates between blocks.
+        """
         try:
             loc = self._new_locator(live.fs_hz, live.n_channels)
+            offset_s: float | None = None  # engine time minus stream time
             for block in live.blocks(BLOCK_S):
                 if self._stop.is_set():
                     break
+                if loc.head_poses is not None:
+                    status = self.engine.status()
+                    end_s = (loc.samples_in + block.shape[1]) / loc.fs_hz
+                    offset_s = status.t_s - end_s if offset_s is None else offset_s
+                    loc.head_poses.add(max(status.t_s - offset_s, 0.0), status.pan_rad,
+                                       status.tilt_rad)
                 for target in loc.push(block):
                     self.source.offer(target, self.engine_time_s())
         finally:
@@ -289,26 +325,36 @@ def parse_input(value: str | None) -> tuple[str, str | None]:
 
 
 def start_meeting_source(engine: Any, cache_dir: Path, seed: int = 1, duration_s: float = 60.0,
-                         audio_input: str | None = None) -> AudioStream:
-    """Plug the streamed talker tracker into ``engine`` now and start streaming ``audio_input``.
+                         audio_input: str | None = None, array_file: Path | str | None = None
+                         ) -> AudioStream:
+    """Plug the streamed talker tracker into ``engine`` now and start streaming ``audio_input``
+    heard by the array of ``array_file`` (default: the shipped 4-mic square).
 
-    Problems opening the input (PortAudio missing, a WAV with the wrong channel count) end up
-    in the returned handle's ``note``; they never raise.
+    Problems opening the input (PortAudio missing, a WAV with the wrong channel count, a
+    head-mounted array on an input that cannot follow the head) end up in the returned
+    handle's ``note``; they never raise. A bad array file raises ConfigError (the service
+    checks it before it starts).
     """
     kind, arg = parse_input(audio_input)
+    array = load_meeting_array(array_file)
     if kind == "live":
-        return _start_live(engine, arg)
+        return _start_live(engine, arg, array)
     if kind == "wav":
-        return _start_wav(engine, Path(str(arg)))
-    stream = AudioStream(engine, "simulated meeting")
+        return _start_wav(engine, Path(str(arg)), array)
+    stream = AudioStream(engine, "simulated meeting", array)
     engine.set_target_source(stream.source)
+    if array.head_mounted:
+        stream.note = (f"audio unavailable: {array.name} is head-mounted and the simulated "
+                       "meeting holds the array still in the room; use live input")
+        return stream
     stream.note = "preparing the simulated meeting"
-    cache = cache_dir / f"meeting_audio_seed{seed}_{int(duration_s)}s_{settings_digest()}.npz"
+    digest = settings_digest(array if array_file is not None else None)
+    cache = cache_dir / f"meeting_audio_seed{seed}_{int(duration_s)}s_{digest}.npz"
 
     def work() -> None:
         loaded = load_audio(cache) if cache.exists() else None
         if loaded is None:
-            loaded = _build_in_worker(stream, seed, duration_s, cache)
+            loaded = _build_in_worker(stream, seed, duration_s, cache, array_file)
             if loaded is None:
                 return
         stream.note = "ready"
@@ -319,14 +365,16 @@ def start_meeting_source(engine: Any, cache_dir: Path, seed: int = 1, duration_s
     return stream
 
 
-def _build_in_worker(stream: AudioStream, seed: int, duration_s: float, cache: Path
-                     ) -> tuple[int, FloatArray] | None:
+def _build_in_worker(stream: AudioStream, seed: int, duration_s: float, cache: Path,
+                     array_file: Path | str | None = None) -> tuple[int, FloatArray] | None:
     # In a separate process: the room simulation would otherwise hold the GIL for long
     # stretches and make the engine loop (same process) miss its real-time pace.
     import subprocess
     import sys
 
     cmd = [sys.executable, "-m", "app.audio", str(seed), str(duration_s), str(cache)]
+    if array_file is not None:
+        cmd.append(str(Path(array_file).resolve()))
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                             cwd=Path(__file__).resolve().parent.parent)
     stream.worker = proc
@@ -343,12 +391,17 @@ def _build_in_worker(stream: AudioStream, seed: int, duration_s: float, cache: P
     return loaded
 
 
-def _start_wav(engine: Any, path: Path) -> AudioStream:
+def _start_wav(engine: Any, path: Path, array: MicArray) -> AudioStream:
     from tracker.audio.sources import read_wav
     from tracker.errors import TrackerError
 
-    stream = AudioStream(engine, f"wav {path.name}")
+    stream = AudioStream(engine, f"wav {path.name}", array)
     engine.set_target_source(stream.source)
+    if array.head_mounted:
+        stream.note = (f"audio unavailable: {array.name} is head-mounted and a WAV replay "
+                       "cannot follow the head: use live input, `tracker audio locate --encoder` "
+                       'offline, or "mount": "room" if the head did not move while recording')
+        return stream
     try:
         fs_hz, audio = read_wav(path)
         stream._new_locator(fs_hz, audio.shape[0])  # channel count checked before streaming
@@ -360,16 +413,15 @@ def _start_wav(engine: Any, path: Path) -> AudioStream:
     return stream
 
 
-def _start_live(engine: Any, device: str | None) -> AudioStream:
-    from tracker.audio.sources import LiveSource
+def _start_live(engine: Any, device: str | None, array: MicArray) -> AudioStream:
+    from tracker.audio import sources
     from tracker.errors import TrackerError
 
-    stream = AudioStream(engine, "live capture")
+    stream = AudioStream(engine, "live capture", array)
     engine.set_target_source(stream.source)
     dev: int | str | None = int(device) if device is not None and device.isdigit() else device
     try:
-        n_mics = meeting_pipeline(16000).array.n_mics
-        live = LiveSource(n_mics, 16000, dev)
+        live = sources.LiveSource(array.n_mics, 16000, dev)
     except TrackerError as exc:  # PortAudio or the device missing: a clear status, no crash
         stream.note = f"live capture unavailable: {exc}"
         log.error("live capture unavailable: %s", exc)
@@ -379,7 +431,9 @@ def _start_live(engine: Any, device: str | None) -> AudioStream:
     return stream
 
 
-if __name__ == "__main__":  # the worker process: python -m app.audio SEED DURATION_S OUT.npz
+if __name__ == "__main__":  # the worker: python -m app.audio SEED DURATION_S OUT.npz [ARRAY.json]
     import sys
 
-    save_audio(Path(sys.argv[3]), *build_meeting_audio(int(sys.argv[1]), float(sys.argv[2])))
+    array_arg = sys.argv[4] if len(sys.argv) > 4 else None
+    save_audio(Path(sys.argv[3]), *build_meeting_audio(int(sys.argv[1]), float(sys.argv[2]),
+                                                       array_arg))

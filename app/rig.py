@@ -129,7 +129,8 @@ def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:
     from app.audio import start_meeting_source
 
     try:
-        source = start_meeting_source(engine, settings.data_dir, audio_input=settings.audio_input)
+        source = start_meeting_source(engine, settings.data_dir, audio_input=settings.audio_input,
+                                      array_file=settings.array_file)
     except ImportError as exc:  # audio stack missing: manual pointing still works
         return None, f"audio unavailable: {exc}"
     return source, None

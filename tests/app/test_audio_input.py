@@ -3,18 +3,25 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import math
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+import app.audio as app_audio
 from app.audio import AudioStream, start_meeting_source
 from app.settings import load_settings
-from tests.tracker.audio.conftest import FS_HZ, example_array, free_field
+from tests.tracker.audio.conftest import ARRAYS_DIR, FS_HZ, example_array, free_field
+from tracker.audio.array import rotation_world_head, unit_vector
 from tracker.audio.sources import write_wav
+from tracker.audio.speech import synthetic_speech
 from tracker.errors import ConfigError, DriverFault
+from tracker.units import SPEED_OF_SOUND_M_PER_S
 
 TALKER_1_DEG, TALKER_2_DEG = 35.0, -40.0
 
@@ -135,3 +142,158 @@ def test_the_configured_audio_input_reaches_the_stream(
     monkeypatch.setattr(app.audio, "start_meeting_source", lambda *a, **kw: seen.update(kw) or "handle")
     assert attach_audio(object(), settings) == ("handle", None)
     assert seen["audio_input"] == f"wav:{wav}"
+    assert seen["array_file"] is None  # the shipped square
+
+
+def test_the_configured_array_file_reaches_the_stream(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Regression: the stream always used the shipped 4-mic square, whatever ``array_file``
+    said (a 6-mic recording was refused as having the wrong channel count)."""
+    import app.audio
+    from app.rig import attach_audio
+
+    six = ARRAYS_DIR / "circular6_46mm.json"
+    settings = load_settings(None, data_dir=tmp_path, array_file=six)
+    seen: dict[str, object] = {}
+    monkeypatch.setattr(app.audio, "start_meeting_source", lambda *a, **kw: seen.update(kw) or "handle")
+    attach_audio(object(), settings)
+    assert seen["array_file"] == six
+    monkeypatch.undo()
+    from tracker.drivers.sim import SimDriver
+    from tracker.engine import Engine
+
+    wav = tmp_path / "six.wav"
+    two_talkers_wav(wav, "circular6_46mm")
+    stream = start_meeting_source(Engine(SimDriver()), tmp_path, audio_input=f"wav:{wav}",
+                                  array_file=six)
+    try:
+        assert stream.note == "ready", stream.note
+        assert stream.array.n_mics == 6 and stream.array.name == str(six)
+    finally:
+        stream.close()
+
+
+def test_the_simulated_meeting_is_rendered_for_the_configured_array(tmp_path: Path) -> None:
+    from tracker.drivers.sim import SimDriver
+    from tracker.engine import Engine
+
+    six = ARRAYS_DIR / "circular6_46mm.json"
+    stream = start_meeting_source(Engine(SimDriver()), tmp_path, duration_s=3.0,
+                                  audio_input="simulated", array_file=six)
+    try:
+        deadline = time.monotonic() + 60
+        while stream.locator is None and time.monotonic() < deadline and "stopped" not in stream.note:
+            time.sleep(0.05)
+        assert stream.locator is not None, stream.note
+        assert stream.locator.pipeline.array.n_mics == 6 and stream.note == "ready"
+    finally:
+        stream.close()
+    cached = list(tmp_path.glob("meeting_audio_*.npz"))
+    assert len(cached) == 1 and app_audio.settings_digest() not in cached[0].name
+
+
+def head_square(tmp_path: Path) -> Path:
+    path = tmp_path / "head_square.json"
+    path.write_text(json.dumps({"mics": example_array("square4_65mm").positions_m.tolist(),
+                                "mount": "head"}))
+    return path
+
+
+@pytest.mark.parametrize("audio_input", ["simulated", "wav"])
+def test_inputs_that_cannot_follow_the_head_say_so(tmp_path: Path, audio_input: str) -> None:
+    wav = tmp_path / "room.wav"
+    write_wav(wav, FS_HZ, 0.1 * np.random.default_rng(0).standard_normal((4, FS_HZ)))
+    value = f"wav:{wav}" if audio_input == "wav" else "simulated"
+    engine = _Engine()
+    stream = start_meeting_source(engine, tmp_path, audio_input=value, array_file=head_square(tmp_path))
+    assert "head_square.json is head-mounted" in stream.note and "live" in stream.note
+    assert engine.source is stream.source and stream.source.target_at(1.0) is None
+    assert stream.locator is None  # nothing streams, nothing steers
+
+
+class _HeadMountedCapture:
+    """Live capture from a head-mounted array, closed around the engine: a talker stands at
+    ``talker_deg`` in the base frame and each block is rendered (exact plane-wave delays) from
+    her direction in the head frame at the engine's pan and tilt when the block is released."""
+
+    def __init__(self, engine: Any, array: Any, talker_deg: float, duration_s: float) -> None:
+        self.engine, self.array = engine, array
+        self.fs_hz, self.n_channels = FS_HZ, array.n_mics
+        speech = synthetic_speech(duration_s, FS_HZ, seed=6).samples
+        self.n = speech.size
+        self.spectrum = np.fft.rfft(speech, 2 * self.n)
+        self.freqs = np.fft.rfftfreq(2 * self.n, 1.0 / FS_HZ)
+        self.talker_rad = math.radians(talker_deg)
+        self.noise = 0.01 * float(np.std(speech)) * np.random.default_rng(7).standard_normal(
+            (array.n_mics, self.n))
+        self.closed = False
+
+    def blocks(self, block_s: float) -> Iterator[np.ndarray]:
+        n_block = int(round(block_s * FS_HZ))
+        for k in range(self.n // n_block):
+            deadline = time.monotonic() + 3.0  # the engine stopped for good: the capture ends
+            while self.engine.status().t_s < (k + 1) * block_s:
+                if time.monotonic() > deadline:
+                    return
+                time.sleep(0.002)
+            st = self.engine.status()
+            u_head = rotation_world_head(st.pan_rad, st.tilt_rad).T @ unit_vector(self.talker_rad, 0.0)
+            arrival_s = -(self.array.positions_m @ u_head) / SPEED_OF_SOUND_M_PER_S
+            audio = np.fft.irfft(self.spectrum[None, :] * np.exp(
+                -2j * np.pi * self.freqs[None, :] * arrival_s[:, None]), 2 * self.n)
+            lo = k * n_block
+            yield audio[:, lo : lo + n_block] + self.noise[:, lo : lo + n_block]
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_a_head_mounted_array_steers_the_camera_in_the_base_frame(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Closed loop: the head turns toward the talker, the array turns with it, and the engine's
+    pan/tilt fed to the stream keep her at 35° in the base frame. Without them the loop would
+    settle at 17.5° (the head-frame estimate 35° - pan taken as the target)."""
+    import tracker.audio.sources as sources
+    from tracker.audio.array import load_array
+    from tracker.drivers.sim import SimDriver
+    from tracker.engine import Engine
+
+    array = load_array(head_square(tmp_path))
+    engine = Engine(SimDriver())
+    engine.set_tracking(True)
+    captures: list[_HeadMountedCapture] = []
+
+    def live(n_channels: int, fs_hz: int, device: object) -> _HeadMountedCapture:
+        assert n_channels == 4 and fs_hz == FS_HZ
+        captures.append(_HeadMountedCapture(engine, array, 35.0, 7.0))
+        return captures[-1]
+
+    monkeypatch.setattr(sources, "LiveSource", live)
+    stream = start_meeting_source(engine, tmp_path, audio_input="live", array_file=array.name)
+    assert stream.note == "ready", stream.note
+    pans: dict[float, float] = {}
+    try:
+        for _ in range(65):  # 6.5 s of engine time in 0.1 s steps, waiting for the audio each time
+            asyncio.run(engine.run(realtime=False, duration_s=0.1))
+            t = engine.status().t_s
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline:
+                loc = stream.locator
+                if loc is not None and loc.samples_in >= (t - 0.15) * FS_HZ:
+                    break
+                time.sleep(0.005)
+            pans[round(t, 2)] = math.degrees(engine.status().pan_rad)
+    finally:
+        stream.close()
+    assert stream.locator is not None and stream.locator.head_poses is not None
+    assert len(stream.locator.head_poses) > 30  # one reading per block
+    st = engine.status()
+    assert st.mode == "tracking" and st.active_talker is not None and "+35°" in st.active_talker
+    late = [p for t, p in pans.items() if t > 4.0]
+    assert max(abs(p - 35.0) for p in late) < 4.0, pans
+    deadline = time.monotonic() + 10
+    while not captures[0].closed and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert captures[0].closed  # the stream closes the device when it stops
+
