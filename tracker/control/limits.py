@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from numba import njit
 
 from tracker.errors import ConfigError
+from tracker.plant.model import AxisModel
 from tracker.plant.params import get_preset
 
 # Fraction of the nominal 10 V torque (less Coulomb friction's help) counted on for braking.
@@ -40,6 +41,10 @@ GUARD_MARGIN_RAD = math.radians(0.25)
 GUARD_LATENCY_S = 0.004
 # The guard's own observer bandwidth: fixed, so that no gain setting can blind the last line.
 GUARD_OBSERVER_HZ = 40.0
+# Belt guard: the largest load-side torque the model may not know (unmodelled gravity, cable
+# drag; N·m). The encoder is on the motor: such a torque twists the belt by τ/k unseen, and a
+# step of it swings the load up to twice that, so the guard line moves in by 2τ/k.
+BELT_LOAD_TORQUE_NM = 0.03
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,6 +90,30 @@ class SoftLimits:
                 f"[{math.degrees(self.lower_rad):.1f}°, {math.degrees(self.upper_rad):.1f}°]"
             )
         return angle_rad
+
+
+def belt_guard_lines(model: AxisModel, limits: SoftLimits) -> tuple[float, float]:
+    """The load angles (rad) the belt guard keeps the load within: the limits less the guard
+    margin and twice the belt's twist under ``BELT_LOAD_TORQUE_NM`` (a torque on the load the
+    motor-side encoder cannot tell from one on the motor)."""
+    twist = 2.0 * belt_twist_rad(model, BELT_LOAD_TORQUE_NM)
+    lo = limits.lower_rad + limits.guard_margin_rad + twist
+    hi = limits.upper_rad - limits.guard_margin_rad - twist
+    if hi - lo <= 0.0:
+        raise ConfigError(
+            f"the belt of {model.params['compliance.frequency']:g} Hz twists {twist:.3g} rad under "
+            f"2 × {BELT_LOAD_TORQUE_NM:g} N·m: no room is left inside the soft limits "
+            f"[{limits.lower_rad:g}, {limits.upper_rad:g}] rad"
+        )
+    return lo, hi
+
+
+def belt_twist_rad(model: AxisModel, torque_nm: float) -> float:
+    """Static twist (rad) of ``model``'s belt under ``torque_nm``: τ / k, k = (2πf)²·Jm·Jl/J."""
+    p = model.params
+    j, frac = p["inertia.J"], p["inertia.motor_fraction"]
+    k = (2.0 * math.pi * p["compliance.frequency"]) ** 2 * j * frac * (1.0 - frac)
+    return torque_nm / k
 
 
 def brake_decel_rad_s2(gain_nm_per_v: float, inertia_kg_m2: float, u_max_v: float = 10.0) -> float:

@@ -30,11 +30,22 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from tracker.control.belt_guard import (
+    G_PHI,
+    G_PLO,
+    N_GP,
+    N_GS,
+    belt_guard_command,
+    design_belt_guard,
+    pack_belt_guard,
+    reset_belt_guard,
+)
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
 from tracker.control.limits import (
     GUARD_LATENCY_S,
     GUARD_OBSERVER_HZ,
     SoftLimits,
+    belt_guard_lines,
     brake_decel_rad_s2,
     clamp_target,
     guard_command,
@@ -70,7 +81,9 @@ C_KJ = 57  # K/J, rad/s² per V, for the guard's worst case
 C_DOB, C_INVK = 58, 59  # disturbance compensation gain, 1/K (V per N·m)
 C_ADAPT = 60  # Coulomb adaptation rate (1/s)
 C_OFF, C_GT, C_GPH = 61, 62, 63  # the model's static torques, in V: offset, gravity amplitude, phase
-N_CP = 64
+C_BELT = 64  # 1: the model has a belt; the two-mass guard (belt_guard.py) replaces the rigid one
+C_BGP = 65  # the belt guard's parameters, N_GP of them
+N_CP = C_BGP + N_GP
 # Adapt only while reference and axis both move faster than this many friction bands.
 ADAPT_BANDS = 5.0
 # Adapted Coulomb stays within [0, ADAPT_MAX_FACTOR × the model's].
@@ -92,7 +105,8 @@ S_X, S_INT, S_PREVY, S_LE, S_LU, S_REF, S_PREVT, S_INIT, S_TH, S_OM, S_GUARD, S_
 )
 S_GX = 16
 S_FCP, S_FCN = 19, 20  # adapted Coulomb feedforward (V), positive and negative direction
-N_CS = 21
+S_BGS = 21  # the belt guard's state, N_GS of them
+N_CS = S_BGS + N_GS
 
 VELOCITY_OBSERVER, VELOCITY_DIFFERENCE = 0.0, 1.0
 
@@ -156,6 +170,13 @@ def pack_controller(
     cp[C_UMAX] = AMPLIFIER_LIMIT_V
     cp[C_KJ] = k / p["inertia.J"]
     cp[C_INVK] = 1.0 / k
+    if model.has("compliance"):
+        # The belt guard keeps the load inside lines the twist margin moves in; targets and the
+        # shaper then work within the band where the backup holds (HOLD_MARGIN_RAD inside).
+        lo_line, hi_line = belt_guard_lines(model, limits)
+        cp[C_BELT] = 1.0
+        cp[C_BGP : C_BGP + N_GP] = pack_belt_guard(design_belt_guard(model, dt_s), lo_line, hi_line)
+        cp[C_LO], cp[C_HI] = cp[C_BGP + G_PLO], cp[C_BGP + G_PHI]
     return cp
 
 
@@ -199,6 +220,7 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
         cs[S_GX + 2] = 0.0
         cs[S_FCP] = cp[C_FCP]
         cs[S_FCN] = cp[C_FCN]
+        reset_belt_guard(cs[S_BGS : S_BGS + N_GS], y_rad)
         cs[S_INIT] = 1.0
     # 1. target → shaped reference.
     r = clamp_target(target_rad, cp[C_LO], cp[C_HI], cp[C_TMARG])
@@ -272,9 +294,23 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
     g_om = cs[S_GX + 1] + cp[C_GL + 1] * g_innov
     g_d = cs[S_GX + 2] + cp[C_GL + 2] * g_innov
     v_diff = (y_rad - cs[S_PREVY]) / dt
-    ug = guard_command(
-        u, g_th, g_om, y_rad, v_diff, cp[C_LO], cp[C_HI], cp[C_GMARG], cp[C_DECEL], cp[C_LAT], umax, cp[C_KJ]
-    )
+    if cp[C_BELT] > 0.0:
+        ug = belt_guard_command(cp[C_BGP : C_BGP + N_GP], cs[S_BGS : S_BGS + N_GS], y_rad, u, umax)
+    else:
+        ug = guard_command(
+            u,
+            g_th,
+            g_om,
+            y_rad,
+            v_diff,
+            cp[C_LO],
+            cp[C_HI],
+            cp[C_GMARG],
+            cp[C_DECEL],
+            cp[C_LAT],
+            umax,
+            cp[C_KJ],
+        )
     cs[S_GUARD] = 1.0 if ug != u else 0.0
     cs[S_PREVY] = y_rad
     u = _clip(ug, umax)

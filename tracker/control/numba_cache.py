@@ -16,6 +16,7 @@ _HERE = Path(__file__).resolve().parent
 _SOURCES = (
     _HERE / "loop.py",
     _HERE / "limits.py",
+    _HERE / "belt_guard.py",
     _HERE / "trajectory.py",
     _HERE / "observer.py",
     _HERE / "closed_loop.py",

@@ -1,0 +1,437 @@
+"""The soft-limit guard for a belt-driven axis: a two-mass observer, a latching backup, a trigger.
+
+Used by :func:`tracker.control.loop.controller_step` instead of the rigid
+:func:`tracker.control.limits.guard_command` when the design model has ``compliance``. The
+encoder is on the motor; the camera is on the load, behind the belt (see
+:mod:`tracker.plant.simulate`: a share ``inertia.motor_fraction`` of J on the motor side)::
+
+    Jm θm'' = K u − b θm' − k (θm − θl) − c (θm' − θl') + d,    Jl θl'' = k (θm − θl) + c (θm' − θl')
+
+with ``d`` a lumped, slowly varying motor-side torque (friction, offset...).
+
+1. **Observer**: the model above, zero-order-hold discretised, states [θm, ωm, θl, ωl, d],
+   corrected every sample by the encoder (steady-state Kalman gain, current form).
+2. **Backup**: a discrete LQR with integral action on the load angle (LQI) that holds the
+   load at a point ``p`` and damps the belt; its command is capped at ``BACKUP_LIMIT_V``
+   (the lowest amplifier clip the guard assumes), so what it asks is what any rig within the
+   assumptions delivers. The integrator removes a constant hidden torque's offset.
+3. **Trigger**: every sample, the controller's command is accepted only if the model predicts
+   that this command, followed from the next sample by the backup (holding the load where it
+   then is), keeps the load inside the guard line. The prediction carries the observer's
+   torque estimate d̂ as a constant and delays every command by the model's delay plus
+   ``HIDDEN_DELAY_S``. When the check fails the backup **latches**: it takes over completely
+   from the (possibly destabilising) controller for at least ``RELEASE_S`` (time to damp the
+   belt), and then until the controller's command passes the check again.
+
+What this can guarantee is what the model says: :func:`backup_spectral_radius` checks the
+backup's loop against gain, delay and belt-frequency errors; the limits of the guarantee are in
+:mod:`tracker.control.limits` and docs/control.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import control
+import numpy as np
+import scipy.linalg
+from numba import njit
+from numpy.typing import NDArray
+
+from tracker.errors import ConfigError
+from tracker.plant.model import AxisModel
+from tracker.units import AMPLIFIER_LIMIT_V
+
+FloatArray = NDArray[np.float64]
+
+N_X = 5  # [θm, ωm, θl, ωl, d]
+# The lowest amplifier clip the guard assumes (limits.py); the backup never asks for more.
+BACKUP_LIMIT_V = 7.0
+# Command delay the model may not know of (on top of its own ``delay.seconds``).
+HIDDEN_DELAY_S = 0.003
+# Backup LQI weights: load angle (1/rad²), velocities (s²/rad²), integral (1/(rad·s)²), volts.
+Q_LOAD, Q_VEL, Q_INT, R_V = 1e2, 0.1, 1e3, 1.0
+# Observer noise: velocity and torque random walks per sample, encoder (quantization) variance.
+W_VEL, W_TORQUE, V_ENC = 1e-3, 1e-5, 3e-9
+# Uncertainty of the observer's torque estimate d̂ the prediction allows for (N·m), and how
+# long a command's excess over the backup limit may linger in d̂ (s).
+DIST_MARGIN_NM = 0.03
+EXCESS_FADE_S = 0.05
+# Prediction horizon, and how often (samples) it tries to end early with the certificate.
+HORIZON_S = 1.5
+CERT_EVERY = 4
+# The backup holds for at least this long before the controller may take over again.
+RELEASE_S = 0.2
+# The backup holds the load at least this far inside the guard line.
+HOLD_MARGIN_RAD = math.radians(1.0)
+# Longest command history kept (samples): known plus hidden delay must fit.
+MAX_DELAY_SAMPLES = 12
+
+
+@dataclass(frozen=True, slots=True)
+class BeltGuardDesign:
+    """The belt guard of one axis, designed on a model with ``compliance``.
+
+    ``a`` (5, 5) and ``b`` (5,) (rad, rad/s and N·m per V) the discrete model of
+    [θm, ωm, θl, ωl, d]; ``l`` (5,) the current-form observer gain; ``gain`` (5,) the backup
+    u = −gain·[θm − p, ωm, θl − p, ωl, ∫(θl − p)dt] (V); ``model_delay_samples`` the
+    model's command delay; ``prediction_delay_samples`` that plus the hidden bound;
+    ``certificate`` (n, n) the Lyapunov matrix P of the predicted backup loop (see
+    :func:`backup_loop_matrix`, n = 6 + prediction delay): once the deviation e from the hold
+    equilibrium has e'Pe ≤ c, the load stays within √(c·(P⁻¹)₂₂) of the hold point and the
+    backup's command within √(c·(P⁻¹)ₙₙ) of its equilibrium, so the prediction can stop.
+    """
+
+    a: FloatArray
+    b: FloatArray
+    l: FloatArray  # noqa: E741 - the textbook name of the observer gain
+    gain: FloatArray
+    model_delay_samples: int
+    prediction_delay_samples: int
+    dt_s: float
+    gain_nm_per_v: float
+    certificate: FloatArray
+
+
+def two_mass_matrices(model: AxisModel, dt_s: float) -> tuple[FloatArray, FloatArray]:
+    """ZOH-discretised belt model of [θm, ωm, θl, ωl, d] driven by u (V): A (5, 5), B (5,)."""
+    if not model.has("compliance"):
+        raise ConfigError("the belt guard needs a model with the compliance effect")
+    p = model.params
+    j, frac, f_hz, zeta = (
+        p["inertia.J"],
+        p["inertia.motor_fraction"],
+        p["compliance.frequency"],
+        p["compliance.damping"],
+    )
+    jm, jl = j * frac, j * (1.0 - frac)
+    j_eff = jm * jl / j
+    k = (2.0 * math.pi * f_hz) ** 2 * j_eff
+    c = 2.0 * zeta * math.sqrt(k * j_eff)
+    b = p["viscous.b"]
+    ac = np.array(
+        [
+            [0.0, 1.0, 0.0, 0.0, 0.0],
+            [-k / jm, -(b + c) / jm, k / jm, c / jm, 1.0 / jm],
+            [0.0, 0.0, 0.0, 1.0, 0.0],
+            [k / jl, c / jl, -k / jl, -c / jl, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0],
+        ]
+    )
+    bc = np.array([0.0, model.gain_nm_per_v / jm, 0.0, 0.0, 0.0])
+    m = np.zeros((N_X + 1, N_X + 1))
+    m[:N_X, :N_X] = ac * dt_s
+    m[:N_X, N_X] = bc * dt_s
+    e = scipy.linalg.expm(m)
+    return e[:N_X, :N_X].copy(), e[:N_X, N_X].copy()
+
+
+def design_belt_guard(model: AxisModel, dt_s: float) -> BeltGuardDesign:
+    """Observer (steady-state Kalman) and backup (LQI) for ``model``'s belt at sample time ``dt_s``."""
+    a, b = two_mass_matrices(model, dt_s)
+    c = np.array([[1.0, 0.0, 0.0, 0.0, 0.0]])
+    w = np.diag([0.0, W_VEL, 0.0, W_VEL, W_TORQUE])
+    p_cov = scipy.linalg.solve_discrete_are(a.T, c.T, w, np.array([[V_ENC]]))
+    l_cur = (p_cov @ c.T / (c @ p_cov @ c.T + V_ENC)).reshape(-1)
+    # LQI: the four mechanical states plus the integral of the load angle.
+    ai = np.zeros((5, 5))
+    ai[:4, :4] = a[:4, :4]
+    ai[4, 2] = dt_s
+    ai[4, 4] = 1.0
+    bi = np.concatenate([b[:4], [0.0]]).reshape(-1, 1)
+    q = np.diag([0.0, 0.1 * Q_VEL, Q_LOAD, Q_VEL, Q_INT])
+    gain, _, _ = control.dlqr(ai, bi, q, np.array([[R_V]]))
+    delay = int(round(model.params.get("delay.seconds", 0.0) / dt_s))
+    pred = delay + int(math.ceil(HIDDEN_DELAY_S / dt_s - 1e-9))
+    if pred > MAX_DELAY_SAMPLES:
+        raise ConfigError(
+            f"the model's command delay {model.params.get('delay.seconds', 0.0)!r} s is too long for "
+            f"the belt guard (at most {(MAX_DELAY_SAMPLES * dt_s - HIDDEN_DELAY_S):g} s)"
+        )
+    g = np.asarray(gain, dtype=float).reshape(-1)
+    phi = backup_loop_matrix(a, b, g, pred, dt_s)
+    if np.max(np.abs(np.linalg.eigvals(phi))) >= 1.0:
+        raise ConfigError(
+            "the belt guard's backup is unstable on its own model "
+            f"(belt {model.params['compliance.frequency']:g} Hz)"
+        )
+    cert = scipy.linalg.solve_discrete_lyapunov(phi.T, np.eye(phi.shape[0]))
+    return BeltGuardDesign(a, b, l_cur, g, delay, pred, dt_s, model.gain_nm_per_v, cert)
+
+
+def backup_loop_matrix(
+    a: FloatArray, b: FloatArray, gain: FloatArray, delay_samples: int, dt_s: float
+) -> FloatArray:
+    """The predicted backup loop as one matrix Φ on e = [θm, ωm, θl, ωl (4), ∫ (1), queue (nd + 1)].
+
+    Deviations from the hold equilibrium; queue[0] is the command acting over the next sample,
+    queue[nd] the newest. One prediction step: x ← A₄x + B₄·queue[0]; u = −gain·[x, ∫];
+    ∫ ← ∫ + Ts·θl; the queue shifts and takes u. Shape (6 + nd, 6 + nd).
+    """
+    nd = delay_samples
+    n = 6 + nd
+    a4, b4 = a[:4, :4], b[:4]
+    step = np.zeros((n, n))
+    step[:4, :4] = a4
+    step[:4, 5] = b4
+    step[4, 4] = 1.0
+    for i in range(nd):
+        step[5 + i, 6 + i] = 1.0  # the queue shifts (its newest slot is filled below)
+    # The newest slot: u = −g·[x⁺, ∫] with x⁺ the stepped state and the old integral.
+    u_row = -(gain[:4] @ step[:4, :]) - gain[4] * np.eye(n)[4]
+    step[5 + nd, :] = u_row
+    # The integral takes the stepped load angle.
+    step[4, :] = np.eye(n)[4] + dt_s * step[2, :]
+    return step
+
+
+def backup_spectral_radius(
+    design: BeltGuardDesign, plant: AxisModel, delay_samples: int, gain_scale: float = 1.0
+) -> float:
+    """Spectral radius of the backup's linear closed loop (observer + LQI) around ``plant``.
+
+    ``plant`` is a belt model (its frequency may differ from the design's), the command reaches
+    it ``delay_samples`` late and ``gain_scale`` times as strong. Below 1: the backup holds.
+    """
+    ap, bp = two_mass_matrices(plant, design.dt_s)
+    ap4, bp4 = ap[:4, :4], bp[:4]
+    a, b, l_c, g = design.a, design.b, design.l, design.gain
+    cy = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
+    ilc = np.eye(N_X) - np.outer(l_c, cy)
+    gx = np.concatenate([g[:4], [0.0]])
+    # Controller state [x⁻ (5), ∫]: x̂ = (I − LC) x⁻ + L y, u = −gx·x̂ − g4·∫.
+    cc = np.concatenate([-gx @ ilc, [-g[4]]])
+    dc = float(-gx @ l_c)
+    m = N_X + 1
+    ac = np.zeros((m, m))
+    bc = np.zeros(m)
+    ac[:N_X, :N_X] = a @ ilc + np.outer(b, cc[:N_X])
+    ac[:N_X, N_X] = b * cc[N_X]
+    bc[:N_X] = a @ l_c + b * dc
+    e_l = np.array([0.0, 0.0, 1.0, 0.0, 0.0])
+    ac[N_X, :N_X] = design.dt_s * e_l @ ilc
+    ac[N_X, N_X] = 1.0
+    bc[N_X] = design.dt_s * float(e_l @ l_c)
+    nd = delay_samples
+    n = 4 + nd + m
+    t = np.zeros((n, n))
+    cp = np.array([1.0, 0.0, 0.0, 0.0])
+    ux = gain_scale * dc * cp
+    uc = gain_scale * cc
+    if nd == 0:
+        t[:4, :4] = ap4 + np.outer(bp4, ux)
+        t[:4, 4:] = np.outer(bp4, uc)
+    else:
+        t[:4, :4] = ap4
+        t[:4, 4 + nd - 1] = bp4
+        t[4, :4] = ux
+        t[4, 4 + nd :] = uc
+        for i in range(1, nd):
+            t[4 + i, 4 + i - 1] = 1.0
+    t[4 + nd :, :4] = np.outer(bc, cp)
+    t[4 + nd :, 4 + nd :] = ac
+    return float(np.max(np.abs(np.linalg.eigvals(t))))
+
+
+# Packed layout (offsets inside the guard's parameter slice; literal indices for numba's cache).
+G_A, G_B, G_L, G_K, G_ND, G_NP, G_UB, G_DT, G_LO, G_HI, G_PLO, G_PHI = (
+    0,
+    25,
+    30,
+    35,
+    40,
+    41,
+    42,
+    43,
+    44,
+    45,
+    46,
+    47,
+)
+G_N, G_PIL, G_PIU, G_INVK, G_P = 48, 49, 50, 51, 52  # certificate: size, (P⁻¹)₂₂, (P⁻¹)ₙₙ, 1/K, P
+N_CERT = 6 + MAX_DELAY_SAMPLES
+N_GP = G_P + N_CERT * N_CERT
+# Guard state slice: observer [5], latch flag, hold point, integral, time latched, recent
+# command excess over the backup limit (V), command history (newest last).
+B_X, B_LATCH, B_P, B_I, B_T, B_EX, B_H = 0, 5, 6, 7, 8, 9, 10
+N_GS = B_H + MAX_DELAY_SAMPLES
+
+
+def pack_belt_guard(design: BeltGuardDesign, lo_line_rad: float, hi_line_rad: float) -> FloatArray:
+    """The guard's parameters for the compiled step, shape (N_GP,).
+
+    The load must stay within [``lo_line_rad``, ``hi_line_rad``]; the backup holds it at most
+    ``HOLD_MARGIN_RAD`` inside those lines (or at their middle if they are closer).
+    """
+    gp = np.zeros(N_GP)
+    gp[G_A : G_A + 25] = design.a.reshape(-1)
+    gp[G_B : G_B + 5] = design.b
+    gp[G_L : G_L + 5] = design.l
+    gp[G_K : G_K + 5] = design.gain
+    gp[G_ND] = design.model_delay_samples
+    gp[G_NP] = design.prediction_delay_samples
+    gp[G_UB] = min(BACKUP_LIMIT_V, AMPLIFIER_LIMIT_V)
+    gp[G_DT] = design.dt_s
+    gp[G_LO], gp[G_HI] = lo_line_rad, hi_line_rad
+    hold = min(HOLD_MARGIN_RAD, 0.5 * (hi_line_rad - lo_line_rad))
+    gp[G_PLO], gp[G_PHI] = lo_line_rad + hold, hi_line_rad - hold
+    cert = design.certificate
+    n = cert.shape[0]
+    inv = np.linalg.inv(cert)
+    gp[G_N], gp[G_PIL], gp[G_PIU], gp[G_INVK] = n, inv[2, 2], inv[n - 1, n - 1], 1.0 / design.gain_nm_per_v
+    gp[G_P : G_P + n * n] = cert.reshape(-1)
+    return gp
+
+
+@njit(cache=True)
+def _step_model(gp: FloatArray, x: FloatArray, d: float, u: float) -> None:
+    """x (4,) ← A₄ x + A[:, d] d + B u, the model's mechanical states over one sample."""
+    y0 = gp[0] * x[0] + gp[1] * x[1] + gp[2] * x[2] + gp[3] * x[3] + gp[4] * d + gp[25] * u
+    y1 = gp[5] * x[0] + gp[6] * x[1] + gp[7] * x[2] + gp[8] * x[3] + gp[9] * d + gp[26] * u
+    y2 = gp[10] * x[0] + gp[11] * x[1] + gp[12] * x[2] + gp[13] * x[3] + gp[14] * d + gp[27] * u
+    y3 = gp[15] * x[0] + gp[16] * x[1] + gp[17] * x[2] + gp[18] * x[3] + gp[19] * d + gp[28] * u
+    x[0], x[1], x[2], x[3] = y0, y1, y2, y3
+
+
+@njit(cache=True)
+def _backup(gp: FloatArray, x: FloatArray, integ: float, p: float) -> float:
+    u = -(gp[35] * (x[0] - p) + gp[36] * x[1] + gp[37] * (x[2] - p) + gp[38] * x[3] + gp[39] * integ)
+    ub = gp[42]
+    return float(min(max(u, -ub), ub))
+
+
+@njit(cache=True)
+def _hold_point(gp: FloatArray, theta_l: float) -> float:
+    return float(min(max(theta_l, gp[46]), gp[47]))
+
+
+@njit(cache=True)
+def _keeps_inside_under(gp: FloatArray, gs: FloatArray, u_v: float, d: float) -> bool:
+    """The prediction of :func:`backup_keeps_inside` under one constant motor-side torque ``d``."""
+    x = np.empty(4)
+    x[0], x[1], x[2], x[3] = gs[0], gs[1], gs[2], gs[3]
+    nd = int(gp[41])
+    dt = gp[43]
+    lo, hi, ub = gp[44], gp[45], gp[42]
+    n_hist = gs.shape[0] - 10
+    queue = np.empty(nd + 1)  # commands in flight, at most what every rig delivers; [0] acts next
+    for i in range(nd):
+        queue[i] = min(max(gs[10 + n_hist - nd + i], -ub), ub)
+    queue[nd] = min(max(u_v, -ub), ub)
+    p = 0.0
+    integ = 0.0
+    n = int(HORIZON_S / dt)
+    for j in range(n):
+        _step_model(gp, x, d, queue[0])
+        if x[2] > hi or x[2] < lo:
+            return False
+        if j == 0:
+            p = _hold_point(gp, x[2])
+        u = _backup(gp, x, integ, p)
+        integ += dt * (x[2] - p)
+        for i in range(nd):
+            queue[i] = queue[i + 1]
+        queue[nd] = u
+        if j % CERT_EVERY == 0 and _certified(gp, x, integ, queue, d, p):
+            return True
+    return False
+
+
+@njit(cache=True)
+def backup_keeps_inside(gp: FloatArray, gs: FloatArray, u_v: float) -> bool:
+    """Does ``u_v`` now, then the backup from the next sample, keep the model's load inside?
+
+    Starts from the corrected observer state in ``gs``; commands reach the model
+    ``G_NP`` samples late (past ones from the history), clipped at ``BACKUP_LIMIT_V``. The
+    observer's torque estimate d̂ is uncertain by ``DIST_MARGIN_NM`` plus what a lower
+    amplifier clip may have hidden in it (K times the recent command excess over the backup
+    limit); the prediction must hold at both ends d̂ ± Δ. False when the load crosses a line or
+    the backup has not provably settled within the horizon.
+    """
+    k_nm_per_v = 1.0 / gp[51]
+    excess = max(gs[9], abs(u_v) - gp[42], 0.0)
+    spread = DIST_MARGIN_NM + k_nm_per_v * excess
+    d = gs[4]
+    return _keeps_inside_under(gp, gs, u_v, d + spread) and _keeps_inside_under(gp, gs, u_v, d - spread)
+
+
+@njit(cache=True)
+def _certified(gp: FloatArray, x: FloatArray, integ: float, queue: FloatArray, d: float, p: float) -> bool:
+    """True if the linear backup loop, from here on, provably stays inside and unsaturated."""
+    n = int(gp[48])
+    u_eq = -d * gp[51]
+    ub = gp[42]
+    if abs(u_eq) >= ub:
+        return False
+    e = np.empty(n)
+    e[0], e[1], e[2], e[3] = x[0] - p, x[1], x[2] - p, x[3]
+    e[4] = integ + u_eq / gp[39]  # at equilibrium −g₄·∫ = u_eq
+    for i in range(n - 5):
+        e[5 + i] = queue[i] - u_eq
+    c = 0.0
+    for i in range(n):
+        row = 0.0
+        for k in range(n):
+            row += gp[52 + i * n + k] * e[k]
+        c += e[i] * row
+    reach = math.sqrt(c * gp[49])
+    if p + reach > gp[45] or p - reach < gp[44]:
+        return False
+    return bool(abs(u_eq) + math.sqrt(c * gp[50]) <= ub)
+
+
+@njit(cache=True)
+def belt_guard_command(gp: FloatArray, gs: FloatArray, y_rad: float, u_v: float, u_max_v: float) -> float:
+    """One sample of the belt guard: encoder ``y_rad`` and the controller's ``u_v`` in, volts out.
+
+    Updates the observer, the latch and the command history in ``gs`` (shape (N_GS,)).
+    A fresh ``gs`` (all zeros, latch 0) must first be initialised with :func:`reset_belt_guard`.
+    """
+    if u_v != u_v:
+        u_v = 0.0
+    u_v = min(max(u_v, -u_max_v), u_max_v)
+    n_hist = gs.shape[0] - 10
+    nd = int(gp[40])
+    # Observer correction (current form); the model's own delay applies to the commands.
+    innov = y_rad - gs[0]
+    for i in range(5):
+        gs[i] += gp[30 + i] * innov
+    x = gs[0:4]
+    dt = gp[43]
+    latched = gs[5] > 0.0
+    if latched and gs[8] >= RELEASE_S and backup_keeps_inside(gp, gs, u_v):
+        latched = False  # held long enough, and the controller's command is safe again
+        gs[5] = 0.0
+    if latched:
+        u = _backup(gp, x, gs[7], gs[6])
+        gs[7] += dt * (x[2] - gs[6])
+        gs[8] += dt
+    elif backup_keeps_inside(gp, gs, u_v):
+        u = u_v
+    else:
+        gs[5] = 1.0
+        gs[6] = _hold_point(gp, x[2])
+        gs[7] = 0.0
+        gs[8] = 0.0
+        u = _backup(gp, x, 0.0, gs[6])
+    # The command's excess over the backup limit fades from d̂ with the observer (EXCESS_FADE_S).
+    gs[9] = max(abs(u) - gp[42], gs[9] * (1.0 - dt / EXCESS_FADE_S), 0.0)
+    # History of applied commands (newest last), then the observer's prediction.
+    for i in range(n_hist - 1):
+        gs[10 + i] = gs[11 + i]
+    gs[10 + n_hist - 1] = u
+    u_obs = gs[10 + n_hist - 1 - nd]
+    xs = np.empty(4)
+    xs[0], xs[1], xs[2], xs[3] = gs[0], gs[1], gs[2], gs[3]
+    _step_model(gp, xs, gs[4], u_obs)
+    gs[0], gs[1], gs[2], gs[3] = xs[0], xs[1], xs[2], xs[3]
+    return float(u)
+
+
+@njit(cache=True)
+def reset_belt_guard(gs: FloatArray, y_rad: float) -> None:
+    """Start the guard at rest at the encoder angle: load with the motor, no latch, no history."""
+    gs[:] = 0.0
+    gs[0] = y_rad
+    gs[2] = y_rad
