@@ -30,6 +30,7 @@ import logging
 import math
 import os
 import threading
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -291,25 +292,36 @@ class AudioStream:
         """Stream live capture until closed (the device paces it).
 
         With a head-mounted array every block carries the engine's measured pan and tilt at
-        the moment it arrived, time-stamped at the block's end on the stream's clock (the
-        clocks are aligned at the first block); the stream interpolates between blocks.
+        the moment it arrived (:meth:`_record_head`).
         """
         try:
             loc = self._new_locator(live.fs_hz, live.n_channels)
-            offset_s: float | None = None  # engine time minus stream time
+            arrivals: deque[float] = deque(maxlen=50)  # engine time minus stream time, 5 s
             for block in live.blocks(BLOCK_S):
                 if self._stop.is_set():
                     break
                 if loc.head_poses is not None:
-                    status = self.engine.status()
-                    end_s = (loc.samples_in + block.shape[1]) / loc.fs_hz
-                    offset_s = status.t_s - end_s if offset_s is None else offset_s
-                    loc.head_poses.add(max(status.t_s - offset_s, 0.0), status.pan_rad,
-                                       status.tilt_rad)
+                    self._record_head(loc, block.shape[1], arrivals)
                 for target in loc.push(block):
                     self.source.offer(target, self.engine_time_s())
         finally:
             live.close()
+
+    def _record_head(self, loc: Any, n_block: int, arrivals: deque[float]) -> None:
+        """Add the engine's pan/tilt now, time-stamped on the stream's clock.
+
+        A block arrives a little after its last sample was captured; the smallest arrival
+        delay of the last 5 s of blocks aligns the two clocks (it also follows the sound
+        card's clock drifting from the engine's), so a reading taken as block k arrives is
+        stamped at about the stream time it belongs to.
+        """
+        status = self.engine.status()
+        end_s = (loc.samples_in + n_block) / loc.fs_hz
+        arrivals.append(status.t_s - end_s)
+        t_s = status.t_s - min(arrivals)
+        span = loc.head_poses.span_s
+        if span is None or t_s > span[1]:
+            loc.head_poses.add(t_s, status.pan_rad, status.tilt_rad)
 
 
 def parse_input(value: str | None) -> tuple[str, str | None]:

@@ -296,7 +296,9 @@ class StreamTargetSource:
 
     Producers call :meth:`offer` with a target and the engine time it applies from;
     ``target_at(t_s)`` returns the newest one (None before the first shot, or when it was
-    offered more than ``stale_s`` of engine time ago: a stalled capture stops steering).
+    offered more than ``stale_s`` of engine time ago: a stalled capture stops steering). The
+    pan is the target azimuth; the tilt is the talker's elevation when the array resolves it,
+    else 0 (eye level).
     """
 
     def __init__(self, name: str = "audio stream", stale_s: float | None = None) -> None:
@@ -326,9 +328,12 @@ class StreamTargetSource:
             label = f"talker {target.talker_id + 1} at {math.degrees(target.talker_azimuth_rad):+.0f}°"
         else:
             label = None
+        # The tilt follows the talker's smoothed elevation when the array resolves it (a cube,
+        # the seed's vertical pair); a flat array cannot, and a wide shot keeps eye level.
+        tilt = target.elevation_rad if target.shot == "talker" else None
         return Target(
             pan_rad=float(target.azimuth_rad),
-            tilt_rad=0.0,  # a planar array cannot resolve elevation; the camera keeps eye level
+            tilt_rad=float(tilt) if tilt is not None else 0.0,
             talker=label,
             azimuth_rad=target.estimate_azimuth_rad if target.speech else None,
             elevation_rad=target.elevation_rad if target.speech else None,

@@ -239,3 +239,17 @@ def test_head_angles_and_mounts_must_agree(square4: MicArray, head_array: MicArr
     blind = StreamingLocator(head_pipeline(head_array))
     with pytest.raises(DataError, match="no head angles"):
         stream_blocks(blind, blocks_of(free_field(head_array, 0.3, duration_s=1.0)))
+
+
+def test_the_tilt_follows_the_talker_when_the_array_resolves_elevation() -> None:
+    from tests.tracker.audio.conftest import example_array
+
+    cube = example_array("cube8_50mm")
+    audio = free_field(cube, math.radians(30.0), math.radians(15.0), duration_s=3.0, seed=9)
+    out = stream_blocks(StreamingLocator(head_pipeline(cube)), blocks_of(audio))
+    src = StreamTargetSource()
+    src.offer(out[-1], 0.0)
+    target = src.target_at(0.0)
+    assert target is not None and out[-1].shot == "talker"
+    assert math.degrees(target.pan_rad) == pytest.approx(30.0, abs=3.0)
+    assert math.degrees(target.tilt_rad) == pytest.approx(15.0, abs=3.0)
