@@ -31,7 +31,7 @@ from tracker.control.design import (
     design_controller,
 )
 from tracker.control.gains import ControllerGains
-from tracker.control.limits import SoftLimits
+from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits
 from tracker.control.loop import S_INIT, S_OM, S_REF, S_TH, controller_step, new_state, pack_controller
 from tracker.control.trajectory import DEFAULT_LIMITS, TrajectoryLimits
 from tracker.drivers.motor import AXES, ClosedLoopDriver, MotorDriver
@@ -55,17 +55,30 @@ class EngineConfig:
     shaping: dict[str, TrajectoryLimits] = field(default_factory=lambda: dict(DEFAULT_LIMITS))
     models: dict[str, AxisModel] | None = None
     enable_on_start: bool = True  # enable the driver when run() starts the first time
+    # The site's mount margin: the soft-limit guard's line sits this far inside the limits
+    # (tracker.control.limits: a belt the model does not know needs its twist at full torque).
+    guard_margin_rad: float = GUARD_MARGIN_RAD
+
+    def __post_init__(self) -> None:
+        for a in AXES:  # a bad margin is refused here, naming itself, not at the first chunk
+            SoftLimits.for_axis(a, self.guard_margin_rad)
 
 
 class _Axis:
     """Controller state of one axis."""
 
     def __init__(
-        self, name: str, model: AxisModel, gains: ControllerGains, shaping: TrajectoryLimits, dt: float
+        self,
+        name: str,
+        model: AxisModel,
+        gains: ControllerGains,
+        shaping: TrajectoryLimits,
+        dt: float,
+        guard_margin_rad: float = GUARD_MARGIN_RAD,
     ) -> None:
         self.name = name
         self.model = model
-        self.limits = SoftLimits.for_axis(name)
+        self.limits = SoftLimits.for_axis(name, guard_margin_rad)
         self.shaping = shaping
         self.dt = dt
         self.gains = gains
@@ -78,6 +91,12 @@ class _Axis:
     def set_gains(self, gains: ControllerGains) -> None:
         self.gains = gains
         self.cp = pack_controller(self.model, gains, self.dt, self.limits, self.shaping)
+
+    def set_model(self, model: AxisModel, gains: ControllerGains) -> None:
+        """Use ``model`` (e.g. with a fitted belt: the belt guard) and ``gains``; nothing changes
+        if packing refuses them (ConfigError, e.g. a belt too soft for the limits)."""
+        cp = pack_controller(model, gains, self.dt, self.limits, self.shaping)
+        self.model, self.gains, self.cp = model, gains, cp
 
 
 class Engine:
@@ -94,7 +113,9 @@ class Engine:
         self._axes: dict[str, _Axis] = {}
         for a in AXES:
             design = design_controller(models[a], self.config.controller, axis=a)
-            self._axes[a] = _Axis(a, models[a], design.gains, self.config.shaping[a], self._dt)
+            self._axes[a] = _Axis(
+                a, models[a], design.gains, self.config.shaping[a], self._dt, self.config.guard_margin_rad
+            )
         self._t = 0.0
         self._k = 0  # samples run; time is k·dt (no drift)
         self._tracking = False
@@ -192,6 +213,10 @@ class Engine:
         ax.set_gains(gains)
         return report
 
+    def limits(self, axis: str) -> SoftLimits:
+        """The soft limits of ``axis`` and its guard's margins."""
+        return self._axis(axis).limits
+
     def model(self, axis: str) -> AxisModel:
         """The model the controller of ``axis`` is designed on."""
         return self._axis(axis).model
@@ -207,8 +232,7 @@ class Engine:
         design = design_controller(model, self.config.controller, axis=axis, **options)
         if not design.report.ok or design.report.phase_margin_deg < self.config.min_phase_margin_deg:
             raise ConfigError(f"{axis} redesign refused: {design.report.describe()}")
-        ax.model = model
-        ax.set_gains(design.gains)
+        ax.set_model(model, design.gains)
         return design
 
     def start_recording(self) -> None:

@@ -253,8 +253,8 @@ G_N, G_PIL, G_PIU, G_INVK, G_P = 48, 49, 50, 51, 52  # certificate: size, (Pâ»Â
 N_CERT = 6 + MAX_DELAY_SAMPLES
 N_GP = G_P + N_CERT * N_CERT
 # Guard state slice: observer [5], latch flag, hold point, integral, time latched, recent
-# command excess over the backup limit (V), command history (newest last).
-B_X, B_LATCH, B_P, B_I, B_T, B_EX, B_H = 0, 5, 6, 7, 8, 9, 10
+# command excess over the backup limit (V), started flag, command history (newest last).
+B_X, B_LATCH, B_P, B_I, B_T, B_EX, B_ON, B_H = 0, 5, 6, 7, 8, 9, 10, 11
 N_GS = B_H + MAX_DELAY_SAMPLES
 
 
@@ -314,10 +314,10 @@ def _keeps_inside_under(gp: FloatArray, gs: FloatArray, u_v: float, d: float) ->
     nd = int(gp[41])
     dt = gp[43]
     lo, hi, ub = gp[44], gp[45], gp[42]
-    n_hist = gs.shape[0] - 10
+    n_hist = gs.shape[0] - 11
     queue = np.empty(nd + 1)  # commands in flight, at most what every rig delivers; [0] acts next
     for i in range(nd):
-        queue[i] = min(max(gs[10 + n_hist - nd + i], -ub), ub)
+        queue[i] = min(max(gs[11 + n_hist - nd + i], -ub), ub)
     queue[nd] = min(max(u_v, -ub), ub)
     p = 0.0
     integ = 0.0
@@ -386,12 +386,15 @@ def belt_guard_command(gp: FloatArray, gs: FloatArray, y_rad: float, u_v: float,
     """One sample of the belt guard: encoder ``y_rad`` and the controller's ``u_v`` in, volts out.
 
     Updates the observer, the latch and the command history in ``gs`` (shape (N_GS,)).
-    A fresh ``gs`` (all zeros, latch 0) must first be initialised with :func:`reset_belt_guard`.
+    A fresh ``gs`` (all zeros) starts itself at rest at the encoder angle; see
+    :func:`reset_belt_guard`.
     """
+    if gs[10] == 0.0:
+        reset_belt_guard(gs, y_rad, 0.0)
     if u_v != u_v:
         u_v = 0.0
     u_v = min(max(u_v, -u_max_v), u_max_v)
-    n_hist = gs.shape[0] - 10
+    n_hist = gs.shape[0] - 11
     nd = int(gp[40])
     # Observer correction (current form); the model's own delay applies to the commands.
     innov = y_rad - gs[0]
@@ -419,9 +422,9 @@ def belt_guard_command(gp: FloatArray, gs: FloatArray, y_rad: float, u_v: float,
     gs[9] = max(abs(u) - gp[42], gs[9] * (1.0 - dt / EXCESS_FADE_S), 0.0)
     # History of applied commands (newest last), then the observer's prediction.
     for i in range(n_hist - 1):
-        gs[10 + i] = gs[11 + i]
-    gs[10 + n_hist - 1] = u
-    u_obs = gs[10 + n_hist - 1 - nd]
+        gs[11 + i] = gs[12 + i]
+    gs[11 + n_hist - 1] = u
+    u_obs = gs[11 + n_hist - 1 - nd]
     xs = np.empty(4)
     xs[0], xs[1], xs[2], xs[3] = gs[0], gs[1], gs[2], gs[3]
     _step_model(gp, xs, gs[4], u_obs)
@@ -430,8 +433,12 @@ def belt_guard_command(gp: FloatArray, gs: FloatArray, y_rad: float, u_v: float,
 
 
 @njit(cache=True)
-def reset_belt_guard(gs: FloatArray, y_rad: float) -> None:
-    """Start the guard at rest at the encoder angle: load with the motor, no latch, no history."""
+def reset_belt_guard(gs: FloatArray, y_rad: float, omega_rad_s: float) -> None:
+    """Start the guard with motor and load together at the encoder angle and ``omega_rad_s``,
+    no latch, no history (a guard switched on mid-run, by a new model, starts from the motion)."""
     gs[:] = 0.0
     gs[0] = y_rad
+    gs[1] = omega_rad_s
     gs[2] = y_rad
+    gs[3] = omega_rad_s
+    gs[10] = 1.0

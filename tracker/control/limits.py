@@ -75,10 +75,10 @@ class SoftLimits:
             )
 
     @classmethod
-    def for_axis(cls, axis: str) -> SoftLimits:
-        """The seed's limits: pan ±90°, tilt ±45° (Table 1.1)."""
+    def for_axis(cls, axis: str, guard_margin_rad: float = GUARD_MARGIN_RAD) -> SoftLimits:
+        """The seed's limits: pan ±90°, tilt ±45° (Table 1.1), with a site's guard margin."""
         lim = get_preset(axis).soft_limit_rad
-        return cls(-lim, lim)
+        return cls(-lim, lim, guard_margin_rad=guard_margin_rad)
 
     def check_target(self, axis: str, angle_rad: float) -> float:
         """Return ``angle_rad`` or raise ConfigError naming the limit it breaks."""
@@ -101,8 +101,8 @@ def belt_guard_lines(model: AxisModel, limits: SoftLimits) -> tuple[float, float
     hi = limits.upper_rad - limits.guard_margin_rad - twist
     if hi - lo <= 0.0:
         raise ConfigError(
-            f"the belt of {model.params['compliance.frequency']:g} Hz twists {twist:.3g} rad under "
-            f"2 × {BELT_LOAD_TORQUE_NM:g} N·m: no room is left inside the soft limits "
+            f"the belt of {model.params['compliance.frequency']:g} Hz needs {twist:.3g} rad of twist margin "
+            f"(twice its twist under {BELT_LOAD_TORQUE_NM:g} N·m): no room is left inside the soft limits "
             f"[{limits.lower_rad:g}, {limits.upper_rad:g}] rad"
         )
     return lo, hi

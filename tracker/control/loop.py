@@ -31,6 +31,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from tracker.control.belt_guard import (
+    B_ON,
     G_PHI,
     G_PLO,
     N_GP,
@@ -220,7 +221,7 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
         cs[S_GX + 2] = 0.0
         cs[S_FCP] = cp[C_FCP]
         cs[S_FCN] = cp[C_FCN]
-        reset_belt_guard(cs[S_BGS : S_BGS + N_GS], y_rad)
+        cs[S_BGS + B_ON] = 0.0  # the belt guard restarts with the controller
         cs[S_INIT] = 1.0
     # 1. target → shaped reference.
     r = clamp_target(target_rad, cp[C_LO], cp[C_HI], cp[C_TMARG])
@@ -295,6 +296,8 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
     g_d = cs[S_GX + 2] + cp[C_GL + 2] * g_innov
     v_diff = (y_rad - cs[S_PREVY]) / dt
     if cp[C_BELT] > 0.0:
+        if cs[S_BGS + B_ON] == 0.0:  # first sample, or a belt model set mid-run: start from the motion
+            reset_belt_guard(cs[S_BGS : S_BGS + N_GS], y_rad, g_om)
         ug = belt_guard_command(cp[C_BGP : C_BGP + N_GP], cs[S_BGS : S_BGS + N_GS], y_rad, u, umax)
     else:
         ug = guard_command(
