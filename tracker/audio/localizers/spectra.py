@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import stats
 
 from tracker.audio.array import MicArray, unit_vector
 
@@ -105,8 +106,64 @@ def snr_weights(spectra: ComplexArray, noise_quantile: float = 0.1) -> FloatArra
     return np.asarray(np.clip(1.0 - noise / (power.mean(axis=0) + 1e-30), 0.0, 1.0))
 
 
-def onset_weights(spectra: ComplexArray, power: float = 2.0, noise_quantile: float = 0.1
-                  ) -> FloatArray:
+def noise_floor(power: FloatArray, n_mics: int, quantile: float = 0.1, block_bins: int = 17
+                ) -> FloatArray:
+    """Stationary noise power per bin, from one window's low power quantile.
+
+    The ``quantile`` of the mic-averaged power over the frames *and* ``block_bins``
+    neighbouring bins (a short window has too few frames for a per-bin floor; noise
+    spectra are smooth in frequency while speech is sparse in time and frequency), divided
+    by the same quantile of noise alone: a mean over ``n_mics`` independent complex Gaussian
+    noise bins of power ``N`` is Gamma(n_mics, N / n_mics) distributed. Block values are
+    interpolated linearly between block centres.
+
+    Parameters
+    ----------
+    power : ndarray, shape (n_frames, n_freq)
+        Power averaged over the mics.
+
+    Returns
+    -------
+    ndarray, shape (n_freq,)
+    """
+    n_frames, n_freq = power.shape
+    n_blocks = max(1, n_freq // block_bins)
+    edges = np.linspace(0, n_freq, n_blocks + 1).astype(int)
+    floors = np.empty(n_blocks)
+    for b in range(n_blocks):
+        values = power[:, edges[b] : edges[b + 1]].ravel()
+        k = int(quantile * (values.size - 1))
+        floors[b] = np.partition(values, k)[k]
+    centres = 0.5 * (edges[:-1] + edges[1:] - 1)
+    scale = float(stats.gamma.ppf(quantile, n_mics, scale=1.0 / n_mics))
+    return np.asarray(np.interp(np.arange(n_freq), centres, floors) / scale)
+
+
+def snr_ratio_weights(power: FloatArray, noise: FloatArray, exponent: float, cap: float = 30.0
+                      ) -> FloatArray:
+    """Per-bin weight ``clip(S(f) / N(f) - 1, 0, cap) ** exponent``.
+
+    ``S`` is the window's mean power (speech, its reverberation and noise), ``N`` the noise
+    floor (:func:`noise_floor`). ``exponent = 1`` is SNR weighting (near the ML weighting of
+    a delay in white noise, Knapp & Carter 1976); smaller exponents keep it from leaning on
+    the loud low frequencies, where reverberation is most coherent and the array resolves
+    least.
+
+    Parameters
+    ----------
+    power : ndarray, shape (n_frames, n_freq)
+    noise : ndarray, shape (n_freq,)
+
+    Returns
+    -------
+    ndarray, shape (n_freq,)
+    """
+    ratio = power.mean(axis=0) / (noise + 1e-30) - 1.0
+    return np.asarray(np.clip(ratio, 0.0, cap) ** exponent)
+
+
+def onset_weights(spectra: ComplexArray, power: float = 2.0, noise_quantile: float = 0.1,
+                  noise: FloatArray | None = None) -> FloatArray:
     """Per time-frequency weight: rising power, above the noise.
 
     ``clip(1 - P(t-1, f) / P(t, f), 0, 1) ** power * clip(1 - N(f) / P(t, f), 0, 1)``:
@@ -126,7 +183,8 @@ def onset_weights(spectra: ComplexArray, power: float = 2.0, noise_quantile: flo
     p = np.mean(np.abs(spectra) ** 2, axis=0)
     previous = np.concatenate([p[:1], p[:-1]], axis=0)
     rising = np.clip(1.0 - previous / (p + 1e-30), 0.0, 1.0) ** power
-    noise = np.quantile(p, noise_quantile, axis=0)
+    if noise is None:
+        noise = np.quantile(p, noise_quantile, axis=0)
     return np.asarray(rising * np.clip(1.0 - noise[None, :] / (p + 1e-30), 0.0, 1.0))
 
 

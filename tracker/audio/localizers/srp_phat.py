@@ -18,25 +18,32 @@ from tracker.audio.localizers.spectra import (
     SrpGrid,
     band_mask,
     gcc,
+    noise_floor,
     onset_weights,
     pair_cross_spectra,
     phat,
+    snr_ratio_weights,
     snr_weights,
     stft,
 )
+from tracker.errors import ConfigError
 
 
 class SrpPhat:
     """SRP-PHAT over all pairs (DiBiase 2000), vectorised as GCC lookups on a grid.
 
     The cross-spectra are summed over the window's STFT frames before PHAT weighting, so
-    loud (speech) frames dominate the phase estimate rather than every frame counting the same,
-    and each frequency is then weighted by how far speech rose above the noise in it
-    (:func:`~tracker.audio.localizers.spectra.snr_weights`). With ``onset_weighting`` (default)
-    each time-frequency bin first counts by how much its power is rising
+    loud (speech) frames dominate the phase estimate rather than every frame counting the same.
+    With ``onset_weighting`` (default) each time-frequency bin first counts by how much its
+    power is rising and stands above the noise floor
     (:func:`~tracker.audio.localizers.spectra.onset_weights`): onsets carry the direct path,
-    decaying tails the room. On the benchmark's target condition this took the median error
-    from 1.8° to 1.4°.
+    decaying tails the room (on the benchmark's target condition this took the median error
+    from 1.8° to 1.4°). Each frequency is then weighted by its speech-to-noise ratio raised to
+    ``snr_exponent`` (:func:`~tracker.audio.localizers.spectra.snr_ratio_weights`, noise from
+    :func:`~tracker.audio.localizers.spectra.noise_floor`): plain PHAT gives the many bins that
+    hold only noise (between harmonics, above the voice's energy) as much say as the voice,
+    which in a short window moves the peak. ``snr_exponent=None`` weights by the older
+    ``1 - N/S`` share instead (:func:`~tracker.audio.localizers.spectra.snr_weights`).
     Coarse grid 2° in azimuth (5° in elevation when the array has height), refined to 0.25°.
     """
 
@@ -52,6 +59,7 @@ class SrpPhat:
         azimuth_range_rad: tuple[float, float] | None = None,
         per_frame_phat: bool = False,
         onset_weighting: bool = True,
+        snr_exponent: float | None = 0.3,
     ) -> None:
         self.array = array
         self.fs_hz = int(fs_hz)
@@ -60,13 +68,22 @@ class SrpPhat:
         az, el = direction_grid(array, azimuth_step_rad, elevation_step_rad, azimuth_range_rad)
         self.per_frame_phat = per_frame_phat
         self.onset_weighting = onset_weighting
+        if snr_exponent is not None and not 0.0 <= snr_exponent <= 2.0:
+            raise ConfigError(f"srp_phat: snr_exponent={snr_exponent} must be within 0-2")
+        self.snr_exponent = snr_exponent
         self._grid = SrpGrid(array, self.fs_hz, az, el, self.settings)
 
     def cross_spectra(self, frame: FloatArray) -> ComplexArray:
         """PHAT-weighted pair cross-spectra of one window; shape (n_pairs, n_freq)."""
         spectra = stft(frame, self.settings.nfft)
-        weights = snr_weights(spectra)
-        onsets = onset_weights(spectra) if self.onset_weighting else None
+        if self.snr_exponent is None:
+            noise = None
+            weights = snr_weights(spectra)
+        else:
+            power = np.mean(np.abs(spectra) ** 2, axis=0)
+            noise = noise_floor(power, self.array.n_mics)
+            weights = snr_ratio_weights(power, noise, self.snr_exponent)
+        onsets = onset_weights(spectra, noise=noise) if self.onset_weighting else None
         if self.per_frame_phat:  # every STFT frame gets one vote (pyroomacoustics' SRP does this)
             spectra = spectra / (np.abs(spectra) + 1e-12)
         cross = phat(pair_cross_spectra(spectra, self.array, onsets), self._mask,
