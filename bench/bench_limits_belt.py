@@ -23,13 +23,12 @@ import numpy as np
 
 from tracker.control.closed_loop import simulate_closed_loop
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
-from tracker.control.limits import SoftLimits
+from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits, unknown_belt_margin_rad
 from tracker.control.trajectory import DEFAULT_LIMITS
 from tracker.plant.model import AxisModel
 
 DT = 1e-3
 N = 3000
-BANDS_HZ = ((5.0, 10.0), (10.0, 20.0), (20.0, 50.0))
 
 
 def _signed(rng: np.random.Generator) -> float:
@@ -117,12 +116,17 @@ def one_run(
     band: tuple[float, float],
     gravity_nm: float = 0.12,
     freq_error: float = 0.0,
+    site_margin_hz: float | None = None,
+    damping: tuple[float, float] = (0.02, 0.5),
 ) -> Run:
     rng = np.random.default_rng(seed)
     limits = SoftLimits.for_axis(axis)
+    if site_margin_hz is not None:  # the site knows only that its belt is at least this stiff
+        margin = unknown_belt_margin_rad(AxisModel.for_axis(axis), site_margin_hz)
+        limits = SoftLimits.for_axis(axis, GUARD_MARGIN_RAD + margin)
     lim = limits.upper_rad
     freq = float(rng.uniform(*band))
-    zeta = float(10.0 ** rng.uniform(math.log10(0.02), math.log10(0.5)))
+    zeta = float(10.0 ** rng.uniform(math.log10(damping[0]), math.log10(damping[1])))
     belt = {"compliance.frequency": freq, "compliance.damping": zeta}
     hidden = random_hidden(rng, gravity_nm)
     effects = sorted({"quantization", "compliance", *(k.split(".")[0] for k in hidden)})
@@ -153,9 +157,21 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--gravity", type=float, default=0.12, help="hidden load-side gravity bound (N·m)")
     ap.add_argument("--freq-error", type=float, default=0.0, help="fitted belt frequency error (relative)")
+    ap.add_argument(
+        "--site-margin-hz",
+        type=float,
+        default=None,
+        help="guard margin for an unknown belt at least this stiff (unknown_belt_margin_rad)",
+    )
+    ap.add_argument("--damping", default="0.02-0.5", help="belt damping ratio range, log-uniform")
+    ap.add_argument("--bands", default="5-10,10-20,20-50", help="belt bands in Hz, e.g. 20-50,50-100")
     ap.add_argument("--model", choices=("rigid", "belt"), default="belt", help="what the guard's model knows")
     args = ap.parse_args()
     t0 = time.perf_counter()
+    bands = [(float(b.split("-")[0]), float(b.split("-")[1])) for b in args.bands.split(",")]
+    damping = (float(args.damping.split("-")[0]), float(args.damping.split("-")[1]))
+    if args.site_margin_hz is not None:
+        print(f"site guard margin for a belt of at least {args.site_margin_hz:g} Hz")
     print(
         f"design model: {args.model} (belt frequency error ≤ ±{100 * args.freq_error:g} %); hidden gravity "
         f"≤ {args.gravity:g} N·m; {args.runs} runs per axis "
@@ -164,7 +180,7 @@ def main() -> None:
     print(f"{'axis':5s} {'belt band':>11s} {'load worst':>11s} {'load p99':>9s} {'enc worst':>10s} passed")
     worst_all: Run | None = None
     for axis in ("pan", "tilt"):
-        for band in BANDS_HZ:
+        for band in bands:
             runs = [
                 one_run(
                     (args.seed, int(axis == "tilt"), int(band[0]), i),
@@ -173,6 +189,8 @@ def main() -> None:
                     band,
                     args.gravity,
                     args.freq_error,
+                    args.site_margin_hz,
+                    damping,
                 )
                 for i in range(args.runs)
             ]

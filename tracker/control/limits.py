@@ -4,22 +4,37 @@ Two lines of defence:
 
 1. :func:`clamp_target` keeps every target inside the limits less ``target_margin_rad``
    (the shaper in :mod:`tracker.control.trajectory` also brakes in time for them);
-2. :func:`guard_command`, the last line, runs after any controller: it predicts where the axis
+2. the last line runs after any controller. :func:`guard_command` (rigid model) predicts where the axis
    would stop if it braked now, from the *observed* velocity, the command latency and the
    deceleration the motor can surely deliver, and overrides the command with a full brake when
    that stop point reaches the guard line (``guard_margin_rad`` inside the limit); at rest near
    the line it forbids outward commands, and past the line it pushes back at full command.
 
-The guard assumes that unmodelled torques (gravity, offset, ripple...) and a lower amplifier
-clip leave at least ``BRAKE_FRACTION`` of the nominal braking torque, that the command delay
-is within ``GUARD_LATENCY_S`` (less one sample), and that the transmission is stiff: the
-encoder is on the motor, so backlash within the margin (tested to 0.23°) is covered but a soft belt
-(the ``compliance`` effect) lets the load swing past what the motor side shows — a 12 Hz tilt
-belt deflects ~6° under 0.1 N·m. For such a rig, raise ``guard_margin_rad`` to the fitted
-belt's deflection at full torque (only stiff belts fit: ~0.1 rad at 20 Hz on pan). With a
-soft belt not even the encoder is guaranteed: the guard's rigid stop-point model and its full
-brake excite the resonance (a random search found the encoder 22° past; docs/control.md).
-A rig outside these assumptions is outside what a motor-side guard can stop.
+Which last line runs depends on what the design model knows.
+
+**Rigid model** (:func:`guard_command`). Assumes that unmodelled torques (gravity, offset,
+ripple...) and a lower amplifier clip leave at least ``BRAKE_FRACTION`` of the nominal braking
+torque, that the command delay is within ``GUARD_LATENCY_S`` (less one sample), and that the
+transmission is stiff: the encoder is on the motor, so backlash within the margin (tested to
+0.23°) is covered. A belt the model does not know is covered only through the site's
+``guard_margin_rad`` (``EngineConfig.guard_margin_rad``): :func:`unknown_belt_margin_rad` gives
+the margin for a belt known to be at least f Hz stiff; measured (bench/bench_limits_belt.py)
+it holds for belts with damping ratio ≥ 0.1, but *not* for lightly damped ones (ζ < 0.1): the
+guard's full-command brake, delayed, pumps the resonance and even the encoder passes (a
+186 Hz, ζ 0.024 tilt belt went 8° past). Soft belts (≲ 30 Hz) need margins of tens of degrees.
+
+**Model with the belt** (``compliance``, e.g. fitted by the workbench; the belt guard in
+:mod:`tracker.control.belt_guard`): a two-mass observer, a model-predicted trigger and a latching
+backup keep the *load* inside lines moved in by the guard margin plus twice the belt's twist
+under ``BELT_LOAD_TORQUE_NM`` (:func:`belt_guard_lines`). Assumptions: the belt's frequency and
+damping as modelled (measured: 10 % frequency error let 1 run in 300 pass by 2.3°); motor-side
+hidden effects as for the rigid guard (offset, friction asymmetry, stiction, ripple, backlash,
+delay ≤ ``belt_guard.HIDDEN_DELAY_S``, amplifier clip ≥ ``belt_guard.BACKUP_LIMIT_V``); load-side
+torques the model does not know ≤ ``BELT_LOAD_TORQUE_NM`` (their twist is invisible to the
+motor encoder: that is the physics the margin pays for); the axis starts at rest inside the
+lines. Under them a random search and the property test found no run past the limit; what is
+proven is the backup's linear robustness (:func:`belt_guard.backup_spectral_radius`), the rest
+is measured, not a proof (docs/control.md, "Soft limits").
 """
 
 from __future__ import annotations
@@ -94,15 +109,17 @@ class SoftLimits:
 
 def belt_guard_lines(model: AxisModel, limits: SoftLimits) -> tuple[float, float]:
     """The load angles (rad) the belt guard keeps the load within: the limits less the guard
-    margin and twice the belt's twist under ``BELT_LOAD_TORQUE_NM`` (a torque on the load the
-    motor-side encoder cannot tell from one on the motor)."""
-    twist = 2.0 * belt_twist_rad(model, BELT_LOAD_TORQUE_NM)
+    margin and twice the belt's twist under ``BELT_LOAD_TORQUE_NM`` plus the model's gravity
+    amplitude (torques on the load the motor-side encoder cannot tell from one on the motor;
+    the belt guard's observer lumps them with the motor's, so a known gravity costs margin too)."""
+    load_torque_nm = BELT_LOAD_TORQUE_NM + abs(model.params.get("gravity.torque", 0.0))
+    twist = 2.0 * belt_twist_rad(model, load_torque_nm)
     lo = limits.lower_rad + limits.guard_margin_rad + twist
     hi = limits.upper_rad - limits.guard_margin_rad - twist
     if hi - lo <= 0.0:
         raise ConfigError(
             f"the belt of {model.params['compliance.frequency']:g} Hz needs {twist:.3g} rad of twist margin "
-            f"(twice its twist under {BELT_LOAD_TORQUE_NM:g} N·m): no room is left inside the soft limits "
+            f"(twice its twist under {load_torque_nm:g} N·m): no room is left inside the soft limits "
             f"[{limits.lower_rad:g}, {limits.upper_rad:g}] rad"
         )
     return lo, hi
@@ -114,6 +131,22 @@ def belt_twist_rad(model: AxisModel, torque_nm: float) -> float:
     j, frac = p["inertia.J"], p["inertia.motor_fraction"]
     k = (2.0 * math.pi * p["compliance.frequency"]) ** 2 * j * frac * (1.0 - frac)
     return torque_nm / k
+
+
+def unknown_belt_margin_rad(model: AxisModel, min_frequency_hz: float, u_max_v: float = 10.0) -> float:
+    """Guard margin (rad) for a rig whose belt the model does not know, only that it is at least
+    ``min_frequency_hz`` stiff: twice the twist under the torque a full brake transmits to the
+    load, 2·K·u_max·(Jl/J)/k (an undamped belt swings to twice its static twist after a step).
+
+    ``model`` is the (rigid) design model; its ``inertia.motor_fraction`` sets the split.
+    """
+    if not (math.isfinite(min_frequency_hz) and min_frequency_hz > 0.0):
+        raise ConfigError(
+            f"belt frequency bound must be a positive frequency in Hz, got {min_frequency_hz!r}"
+        )
+    belt = model.with_effect("compliance", {"compliance.frequency": min_frequency_hz})
+    frac = model.params["inertia.motor_fraction"]
+    return 2.0 * belt_twist_rad(belt, model.gain_nm_per_v * u_max_v * (1.0 - frac))
 
 
 def brake_decel_rad_s2(gain_nm_per_v: float, inertia_kg_m2: float, u_max_v: float = 10.0) -> float:
