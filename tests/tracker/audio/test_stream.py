@@ -192,6 +192,10 @@ def test_a_turning_head_keeps_the_talker_in_the_base_frame(head_array: MicArray,
     # Windows recorded while the head swept more than 10° carry no direction.
     turning = [f for f in loc.frames if 2.2 < f.end_s < 2.6]
     assert turning and all(f.confidence == 0.0 for f in turning)
+    # The 1.5 s refining windows that span the turn are dropped; they return after it.
+    spanning = [f for f in loc.frames if f.speech and 2.4 < f.end_s < 3.7]
+    assert spanning and all(f.fine_azimuth_rad is None for f in spanning)
+    assert any(f.fine_azimuth_rad is not None for f in loc.frames if f.speech and f.end_s > 4.2)
     # The same audio taken as a room-mounted array's: after the turn it is 40° off.
     fixed = StreamingLocator(head_pipeline(dataclasses.replace(head_array, mount="room")))
     fixed.keep_frames = True
