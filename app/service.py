@@ -51,10 +51,11 @@ class Service:
         if s.audio_enabled:
             self.audio, self.audio_note = rig.attach_audio(self.engine, s)
         if s.viewer_enabled:
-            from app.viewer import RigViewer, load_mics
+            from app.viewer import RigViewer, array_is_head_mounted, load_mics
 
             try:
-                self.viewer = RigViewer(s.viewer_host, s.viewer_port, load_mics(s.array_file))
+                self.viewer = RigViewer(s.viewer_host, s.viewer_port, load_mics(s.array_file),
+                                        array_is_head_mounted(s.array_file))
                 self.viewer.start(self.hub, s.viewer_rate_hz)
             except OSError as exc:
                 log.error("3D view not started (%s:%d): %s", s.viewer_host, s.viewer_port, exc)

@@ -61,6 +61,13 @@ def angle_about_y(wxyz: Any) -> float:
     return 2.0 * math.atan2(y, w)
 
 
+def array_is_head_mounted(path: Path | None) -> bool:
+    """True when the array JSON says ``"mount": "head"`` (the shipped default is on the base)."""
+    from tracker.audio.array import load_array
+
+    return path is not None and load_array(path).head_mounted
+
+
 def load_mics(path: Path | None) -> np.ndarray:
     """Microphone positions (n_mics, 3) in metres from an array JSON (validated by
     ``tracker.audio.array.load_array``); the shipped 4-mic square by default (as the meeting)."""
@@ -78,7 +85,7 @@ def _refuse_share_url(*_: Any, **__: Any) -> None:
 class RigViewer:
     """The viser server and the scene handles it updates from telemetry."""
 
-    def __init__(self, host: str, port: int, mics_m: np.ndarray) -> None:
+    def __init__(self, host: str, port: int, mics_m: np.ndarray, head_mounted: bool = False) -> None:
         import viser
         from viser import _messages
 
@@ -95,6 +102,7 @@ class RigViewer:
             self.server.initial_camera.look_at = (0.6, 0.0, 1.0)
         self.host = host
         self.port = self.server.get_port()
+        self.head_mounted = bool(head_mounted)
         self._build_scene(mics_m)
         self._task: asyncio.Task[None] | None = None
         self.pan_rad = 0.0
@@ -139,8 +147,9 @@ class RigViewer:
             position=(0.08, 0.0, 0.0),
         )
         self.array_frame = sc.add_frame("/room/array", show_axes=False, position=(0.0, 0.0, ARRAY_HEIGHT_M))
-        sc.add_point_cloud(
-            "/room/array/mics",
+        # A head-mounted array (as in the seed) turns with the camera: draw it on the tilt frame.
+        self.mics = sc.add_point_cloud(
+            "/room/pan/tilt/mics" if self.head_mounted else "/room/array/mics",
             points=mics_m.astype(np.float32) * 3.0,
             colors=(20, 140, 60),
             point_size=0.03,

@@ -101,3 +101,21 @@ def test_the_trail_keeps_the_last_estimates(viewer: RigViewer) -> None:
     az = np.degrees(np.arctan2(pts[:, 1], pts[:, 0]))
     assert set(np.round(az).astype(int)) == {30, -20}
     np.testing.assert_allclose(np.linalg.norm(pts, axis=1), 2.5, rtol=2e-3)  # viser stores float16
+
+
+def test_a_head_mounted_array_is_drawn_on_the_head() -> None:
+    """The seed's pairs ride on the pan/tilt head: the view draws them under the tilt frame
+    (they turn with the camera); the shipped square stays on the base."""
+    from pathlib import Path
+
+    from app.viewer import array_is_head_mounted
+
+    arrays = Path(__file__).resolve().parents[2] / "examples" / "arrays"
+    assert array_is_head_mounted(arrays / "seed_pairs.json")
+    assert not array_is_head_mounted(arrays / "square4_65mm.json")
+    assert not array_is_head_mounted(None)
+    v = RigViewer("127.0.0.1", free_port(), load_mics(arrays / "seed_pairs.json"), head_mounted=True)
+    try:
+        assert v.mics.name.startswith("/room/pan/tilt/")
+    finally:
+        v.server.stop()
