@@ -118,6 +118,7 @@ def one_run(
     freq_error: float = 0.0,
     site_margin_hz: float | None = None,
     damping: tuple[float, float] = (0.02, 0.5),
+    damping_error: float = 1.0,
 ) -> Run:
     rng = np.random.default_rng(seed)
     limits = SoftLimits.for_axis(axis)
@@ -132,7 +133,10 @@ def one_run(
     effects = sorted({"quantization", "compliance", *(k.split(".")[0] for k in hidden)})
     plant = AxisModel.for_axis(axis, effects, {**belt, **hidden})
     # The guard's model: the belt as fitted, its frequency off by up to ±freq_error (relative).
-    fitted = {**belt, "compliance.frequency": freq * (1.0 + freq_error * rng.uniform(-1.0, 1.0))}
+    fitted = {
+        "compliance.frequency": freq * (1.0 + freq_error * rng.uniform(-1.0, 1.0)),
+        "compliance.damping": zeta * damping_error ** rng.uniform(-1.0, 1.0),
+    }
     design = AxisModel.for_axis(axis, ["compliance"], fitted) if known else AxisModel.for_axis(axis)
     gains = random_gains(rng)
     shaped = rng.random() < 0.5
@@ -163,6 +167,9 @@ def main() -> None:
         default=None,
         help="guard margin for an unknown belt at least this stiff (unknown_belt_margin_rad)",
     )
+    ap.add_argument(
+        "--damping-error", type=float, default=1.0, help="fitted damping off by up to this factor"
+    )
     ap.add_argument("--damping", default="0.02-0.5", help="belt damping ratio range, log-uniform")
     ap.add_argument("--bands", default="5-10,10-20,20-50", help="belt bands in Hz, e.g. 20-50,50-100")
     ap.add_argument("--model", choices=("rigid", "belt"), default="belt", help="what the guard's model knows")
@@ -191,6 +198,7 @@ def main() -> None:
                     args.freq_error,
                     args.site_margin_hz,
                     damping,
+                    args.damping_error,
                 )
                 for i in range(args.runs)
             ]
