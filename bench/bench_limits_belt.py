@@ -2,7 +2,8 @@
 
 Each run draws a belt (compliance 5–50 Hz, damping 0.02–0.5, optional backlash ≤ 0.23°),
 random gains of both structures (|gain| 1e-3…1e5, either sign), random targets (holds, jumps,
-20 Hz sines, ±1e6, NaN), a random start, and hidden motor-side effects within the guard's
+20 Hz sines, ±1e6, NaN), a random start at rest (inside the belt guard's lines when the model
+knows the belt), and hidden motor-side effects within the guard's
 assumptions (offset, Coulomb asymmetry, stiction, delay ≤ 3 ms, amplifier clip ≥ 7 V, ripple;
 gravity on the load side). The design model is either the seed's rigid model (the guard does
 not know of the belt: ``--model rigid``) or the seed's model plus the true belt (``--model
@@ -23,7 +24,7 @@ import numpy as np
 
 from tracker.control.closed_loop import simulate_closed_loop
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
-from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits, unknown_belt_margin_rad
+from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits, belt_guard_lines, unknown_belt_margin_rad
 from tracker.control.trajectory import DEFAULT_LIMITS
 from tracker.plant.model import AxisModel
 
@@ -140,6 +141,9 @@ def one_run(
     design = AxisModel.for_axis(axis, ["compliance"], fitted) if known else AxisModel.for_axis(axis)
     gains = random_gains(rng)
     shaped = rng.random() < 0.5
+    # The axis starts at rest: inside the belt guard's lines when the model knows the belt (its
+    # assumption), anywhere inside the limits otherwise.
+    start_lo, start_hi = belt_guard_lines(design, limits) if known else (-lim, lim)
     r = simulate_closed_loop(
         plant,
         design,
@@ -148,7 +152,7 @@ def one_run(
         DT,
         limits,
         DEFAULT_LIMITS[axis] if shaped else None,
-        theta0_rad=float(rng.uniform(-lim + 0.02, lim - 0.02)),
+        theta0_rad=float(rng.uniform(start_lo + 0.02, start_hi - 0.02)),
     )
     load = float(np.max(np.abs(r.load_theta_rad))) - lim
     enc = float(np.max(np.abs(r.theta_rad))) - lim

@@ -21,7 +21,8 @@ with ``d`` a lumped, slowly varying motor-side torque (friction, offset...).
    torque estimate d̂ as a constant and delays every command by the model's delay plus
    ``HIDDEN_DELAY_S``. When the check fails the backup **latches**: it takes over completely
    from the (possibly destabilising) controller for at least ``RELEASE_S`` (time to damp the
-   belt), and then until the controller's command passes the check again.
+   belt), and then until the observed motor and load are calm (``RELEASE_RAD_S``) and the
+   controller's command passes the check again.
 
 What this can guarantee is what the model says: :func:`backup_spectral_radius` checks the
 backup's loop against gain, delay and belt-frequency errors; the limits of the guarantee are in
@@ -63,6 +64,9 @@ HORIZON_S = 1.5
 CERT_EVERY = 4
 # The backup holds for at least this long before the controller may take over again.
 RELEASE_S = 0.2
+# ... and until both observed velocities are below this (a release on a swinging estimate, with
+# the belt 10 % off the model's, let the controller push the load past: bench_limits_belt.py).
+RELEASE_RAD_S = 0.5
 # The backup holds the load at least this far inside the guard line.
 HOLD_MARGIN_RAD = math.radians(1.0)
 # Longest command history kept (samples): known plus hidden delay must fit.
@@ -403,7 +407,8 @@ def belt_guard_command(gp: FloatArray, gs: FloatArray, y_rad: float, u_v: float,
     x = gs[0:4]
     dt = gp[43]
     latched = gs[5] > 0.0
-    if latched and gs[8] >= RELEASE_S and backup_keeps_inside(gp, gs, u_v):
+    calm = abs(x[1]) < RELEASE_RAD_S and abs(x[3]) < RELEASE_RAD_S
+    if latched and gs[8] >= RELEASE_S and calm and backup_keeps_inside(gp, gs, u_v):
         latched = False  # held long enough, and the controller's command is safe again
         gs[5] = 0.0
     if latched:

@@ -5,10 +5,11 @@ Two lines of defence:
 1. :func:`clamp_target` keeps every target inside the limits less ``target_margin_rad``
    (the shaper in :mod:`tracker.control.trajectory` also brakes in time for them);
 2. the last line runs after any controller. :func:`guard_command` (rigid model) predicts
-   where the axis would stop if it braked now, from the *observed* velocity, the command latency and the
-   deceleration the motor can surely deliver, and overrides the command with a full brake when
-   that stop point reaches the guard line (``guard_margin_rad`` inside the limit); at rest near
-   the line it forbids outward commands, and past the line it pushes back at full command.
+   where the axis would stop if it braked now, from the *observed* velocity, the command
+   latency and the deceleration the motor can surely deliver, and overrides the command with a
+   full brake when that stop point reaches the guard line (``guard_margin_rad`` inside the
+   limit); at rest near the line it forbids outward commands, and past the line it pushes back
+   at full command. For a model with a belt, :mod:`tracker.control.belt_guard` replaces it.
 
 Which last line runs depends on what the design model knows.
 
