@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tracker.audio.array import MicArray
 from tracker.audio.localizers import DEFAULT_LOCALIZER, Localizer, make_localizer
+from tracker.audio.localizers.base import DirectionEstimate, check_frame, direction_grid, wrap_angle
+from tracker.audio.localizers.spectra import SrpGrid, gcc
+from tracker.audio.localizers.srp_phat import SrpPhat
+from tracker.audio.map_tracking import MapTracker, MapTrackerSettings
 from tracker.audio.tracking import TalkerTracker, TrackerSettings, TrackPoint
 from tracker.audio.vad import SpeechDetector, VadSettings
 from tracker.errors import ConfigError, DataError
@@ -43,6 +47,8 @@ class FrameEstimate:
     """One analysis window's raw estimate.
 
     ``t_s`` is the window centre, ``end_s`` the moment a live system would have it.
+    ``power_map`` (only for the map tracker) is the short window's steered response over
+    :attr:`Pipeline.map_azimuth_rad`, shape (n_map,); it takes no part in equality.
     """
 
     t_s: float
@@ -52,6 +58,7 @@ class FrameEstimate:
     confidence: float
     speech: bool
     fine_azimuth_rad: float | None = None
+    power_map: FloatArray | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,9 +96,20 @@ class LocateResult:
         }
 
 
+TrackerName = Literal["kalman", "map"]
+TRACKERS: tuple[TrackerName, ...] = ("kalman", "map")
+MAP_STEP_RAD = float(np.deg2rad(1.0))
+
+
 @dataclass
 class Pipeline:
-    """VAD + localizer + talker tracker bound to one array and sample rate."""
+    """VAD + localizer + talker tracker bound to one array and sample rate.
+
+    ``tracker`` chooses the talker tracker: ``"kalman"`` (:mod:`tracker.audio.tracking`, fed
+    the short and long windows' peaks) or ``"map"`` (:mod:`tracker.audio.map_tracking`, fed
+    each short window's steered-response map over a 1° azimuth grid, computed from the same
+    cross-spectra as its estimate; needs the ``srp_phat`` localizer).
+    """
 
     array: MicArray
     fs_hz: int
@@ -101,11 +119,57 @@ class Pipeline:
     tracking: TrackerSettings = field(default_factory=TrackerSettings)
     localizer_options: dict[str, Any] = field(default_factory=dict)
     fine_lag_fraction: float = 1.0
+    tracker: TrackerName = "kalman"
+    map_tracking: MapTrackerSettings = field(default_factory=MapTrackerSettings)
     localizer: Localizer = field(init=False)
+    map_azimuth_rad: FloatArray = field(init=False)
+    _peak_grid: SrpGrid | None = field(init=False, default=None)
+    _map_grid: SrpGrid | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
+        if self.tracker not in TRACKERS:
+            raise ConfigError(f"unknown tracker {self.tracker!r}; choose one of: {', '.join(TRACKERS)}")
         self.localizer = make_localizer(self.method, self.array, self.fs_hz,
                                         **self.localizer_options)
+        self.map_azimuth_rad = np.zeros(0)
+        if self.tracker == "map":
+            self._build_map_grids()
+
+    def _build_map_grids(self) -> None:
+        """The localizer's own search grid (same peaks as ``locate``) and the 1° map grid."""
+        loc = self.localizer
+        if not isinstance(loc, SrpPhat):
+            raise ConfigError(f"the map tracker needs the srp_phat localizer, not {self.method!r}")
+        opts = self.localizer_options
+        az_range = opts.get("azimuth_range_rad")
+        # SrpPhat's defaults; a test checks the estimates equal ``locate``'s.
+        az_step: float = opts.get("azimuth_step_rad", float(np.deg2rad(2.0)))
+        el_step: float = opts.get("elevation_step_rad", float(np.deg2rad(5.0)))
+        az, el = direction_grid(self.array, az_step, el_step, az_range)
+        self._peak_grid = SrpGrid(self.array, self.fs_hz, az, el, loc.settings)
+        map_az, _ = direction_grid(self.array, MAP_STEP_RAD, np.pi, az_range)
+        self.map_azimuth_rad = np.unique(map_az)
+        self._map_grid = SrpGrid(self.array, self.fs_hz, self.map_azimuth_rad,
+                                 np.zeros_like(self.map_azimuth_rad), loc.settings)
+
+    def locate_with_map(self, frame: FloatArray) -> tuple[DirectionEstimate, FloatArray]:
+        """One window's estimate (as ``localizer.locate``) and its azimuth map, one STFT.
+
+        The map is the steered response (mean PHAT-weighted GCC over pairs) at
+        :attr:`map_azimuth_rad` at zero elevation; shape (n_map,).
+        """
+        loc, peak_grid, map_grid = self.localizer, self._peak_grid, self._map_grid
+        if peak_grid is None or map_grid is None or not isinstance(loc, SrpPhat):
+            raise ConfigError("azimuth maps are computed only for tracker='map'")
+        frame = check_frame(frame, self.array, loc.settings.nfft)
+        g = gcc(loc.cross_spectra(frame), loc.settings)
+        peak = peak_grid.peak(g)
+        estimate = DirectionEstimate(
+            azimuth_rad=float(wrap_angle(peak.azimuth_rad)),
+            elevation_rad=peak.elevation_rad if self.array.resolves_elevation else None,
+            confidence=float(np.clip(peak.power, 0.0, 1.0)),
+        )
+        return estimate, map_grid.response(g)
 
     def estimate_frames(self, audio: FloatArray) -> tuple[FrameEstimate, ...]:
         """Raw estimate of every window of ``audio``, shape (n_mics, n_samples)."""
@@ -120,18 +184,24 @@ class Pipeline:
         for start in range(0, audio.shape[1] - n_win + 1, n_hop):
             start_s, end_s = start / self.fs_hz, (start + n_win) / self.fs_hz
             speech = detector.window_is_speech(features, start_s, end_s)
-            estimate = self.localizer.locate(audio[:, start : start + n_win])
+            power_map = None
+            if self.tracker == "map":
+                estimate, power_map = self.locate_with_map(audio[:, start : start + n_win])
+            else:
+                estimate = self.localizer.locate(audio[:, start : start + n_win])
             fine = None
             if speech and n_fine:
                 lo = max(0, start + n_win - n_fine)
                 fine = self.localizer.locate(audio[:, lo : start + n_win]).azimuth_rad
             frames.append(FrameEstimate(0.5 * (start_s + end_s), end_s, estimate.azimuth_rad,
                                         estimate.elevation_rad, estimate.confidence, speech,
-                                        fine))
+                                        fine, power_map))
         return tuple(frames)
 
     def track(self, frames: tuple[FrameEstimate, ...]) -> tuple[TrackPoint, ...]:
         """Run the talker tracker over frames in time order (fresh tracker each call)."""
+        if self.tracker == "map":
+            return self._track_maps(frames)
         tracker = TalkerTracker(self.tracking)
         fine_s = self.windows.fine_window_s
         lag_s = self.fine_lag_fraction * 0.5 * (fine_s - self.windows.window_s) if fine_s else 0.0
@@ -140,6 +210,16 @@ class Pipeline:
                          f.fine_azimuth_rad, lag_s)
             for f in frames
         )
+
+    def _track_maps(self, frames: tuple[FrameEstimate, ...]) -> tuple[TrackPoint, ...]:
+        tracker = MapTracker(self.map_azimuth_rad, self.map_tracking)
+        out = []
+        for f in frames:
+            if f.power_map is None:
+                raise DataError(f"frame at t={f.t_s:.3f} s has no azimuth map (estimated for "
+                                "another tracker?)")
+            out.append(tracker.step(f.t_s, f.power_map, f.elevation_rad, f.speech))
+        return tuple(out)
 
     def run(self, audio: FloatArray) -> LocateResult:
         """Frames and track of a whole recording."""

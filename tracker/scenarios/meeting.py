@@ -25,7 +25,8 @@ from numpy.typing import NDArray
 
 from tracker.audio import room
 from tracker.audio.array import MicArray, load_array
-from tracker.audio.pipeline import FrameEstimate, Pipeline, WindowSettings
+from tracker.audio.map_tracking import MapTrackerSettings
+from tracker.audio.pipeline import FrameEstimate, Pipeline, TrackerName, WindowSettings
 from tracker.audio.speech import talker_speech
 from tracker.audio.tracking import TrackerSettings, TrackPoint
 from tracker.audio.vad import SpeechDetector
@@ -43,13 +44,19 @@ _WALK = ((np.deg2rad(65.0), 1.8), (np.deg2rad(15.0), 3.4))
 
 @dataclass(frozen=True, slots=True)
 class MeetingSettings:
-    """The room and the pipeline of the meeting run."""
+    """The room and the pipeline of the meeting run.
+
+    ``tracker`` chooses the talker tracker (:class:`~tracker.audio.pipeline.Pipeline`):
+    ``"kalman"`` uses ``tracking``, ``"map"`` uses ``map_tracking``.
+    """
 
     room: room.RoomSettings = field(default_factory=room.RoomSettings)
     array_file: str = "square4_65mm.json"
     method: str = "srp_phat"
     windows: WindowSettings = field(default_factory=lambda: WindowSettings(0.3, 0.1, 1.5))
     tracking: TrackerSettings = field(default_factory=TrackerSettings)
+    tracker: TrackerName = "kalman"
+    map_tracking: MapTrackerSettings = field(default_factory=MapTrackerSettings)
     turn_s: tuple[float, float] = (6.0, 10.0)
     gap_s: tuple[float, float] = (0.3, 1.0)
     use_espeak: bool = False
@@ -198,7 +205,8 @@ def meeting_frames(seed: int, duration_s: float, settings: MeetingSettings
 
 def _pipeline(settings: MeetingSettings, array: MicArray, fs_hz: int) -> Pipeline:
     return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
-                    localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)})
+                    localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)},
+                    tracker=settings.tracker, map_tracking=settings.map_tracking)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
