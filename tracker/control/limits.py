@@ -20,9 +20,9 @@ transmission is stiff: the encoder is on the motor, so backlash within the margi
 0.23°) is covered. A belt the model does not know is covered only through the site's
 ``guard_margin_rad`` (``EngineConfig.guard_margin_rad``): :func:`unknown_belt_margin_rad` gives
 the margin for a belt known to be at least f Hz stiff; measured (bench/bench_limits_belt.py)
-it holds for belts with damping ratio ≥ 0.1, but *not* for lightly damped ones (ζ < 0.1): the
-guard's full-command brake, delayed, pumps the resonance and even the encoder passes (a
-186 Hz, ζ 0.024 tilt belt went 8° past). Soft belts (≲ 30 Hz) need margins of tens of degrees.
+it holds for belts with damping ratio ≥ 0.1 (0 of 3000 runs past), but *not* for lightly
+damped ones: the guard's full-command brake, delayed, pumps the resonance and even the encoder
+passes (ζ 0.02–0.05: 14 of 1200 runs past, up to 85°). Soft belts (≲ 30 Hz) need margins of tens of degrees.
 
 **Model with the belt** (``compliance``, e.g. fitted by the workbench; the belt guard in
 :mod:`tracker.control.belt_guard`): a two-mass observer, a model-predicted trigger and a
