@@ -9,9 +9,16 @@ from hypothesis import HealthCheck, assume, given, reject, settings
 from hypothesis import strategies as st
 
 from tracker.control.belt_guard import (
+    B_EX,
+    B_LATCH,
+    B_P,
+    B_T,
+    B_X,
     N_GS,
+    RELEASE_RAD_S,
     backup_keeps_inside,
     backup_spectral_radius,
+    belt_guard_command,
     design_belt_guard,
     pack_belt_guard,
     reset_belt_guard,
@@ -217,3 +224,35 @@ def test_a_site_margin_covers_an_unknown_damped_belt_at_least_30_hz_stiff(
     r = simulate_closed_loop(plant, rigid, gains, targets, DT, limits, None, theta0_rad=theta0)
     worst = float(np.max(np.abs(r.load_theta_rad)))
     assert worst <= limits.upper_rad, f"load reached {math.degrees(worst):.3f}°"
+
+
+def test_regression_a_lower_amplifier_clip_hidden_in_the_torque_estimate_is_not_counted_on() -> None:
+    """The first belt guard trusted d̂ in its prediction; while the controller asked −10 V of an
+    amplifier clipping at 7 V, d̂ held the 3 V shortfall as a +0.2 N·m "helping" torque the
+    backup (≤ 7 V) never gets, so the load went 14° past. The prediction now widens d̂'s
+    uncertainty by K times the recent command excess over the backup limit."""
+    model = belt_model("pan", {"compliance.frequency": 10.0, "compliance.damping": 0.1})
+    gp = pack_belt_guard(design_belt_guard(model, DT), -1.0, 1.0)
+    gs = np.zeros(N_GS)
+    reset_belt_guard(gs, -0.8, -6.0)  # 6 rad/s toward the line at −1 rad
+    gs[B_X + 4] = 0.2  # d̂ pushes back, as the clip's shortfall makes it look
+    assert backup_keeps_inside(gp, gs, 0.0)  # if that torque were real, the backup would stop in time
+    gs[B_EX] = 3.0  # ... but the last commands asked 3 V more than every rig delivers
+    assert not backup_keeps_inside(gp, gs, 0.0)
+
+
+def test_the_latch_holds_while_the_observed_axis_still_swings() -> None:
+    """Released on a swinging estimate (with the belt 10 % off the model's) the controller pushed
+    the load past: the backup keeps the axis until both observed velocities are calm."""
+    model = belt_model("pan", {"compliance.frequency": 10.0, "compliance.damping": 0.1})
+    gp = pack_belt_guard(design_belt_guard(model, DT), -1.0, 1.0)
+    gs = np.zeros(N_GS)
+    reset_belt_guard(gs, 0.0, 0.0)
+    gs[B_LATCH], gs[B_P], gs[B_T] = 1.0, 0.0, 1.0  # latched for 1 s, long past RELEASE_S
+    gs[B_X + 3] = 2.0 * RELEASE_RAD_S  # the load estimate still swings
+    belt_guard_command(gp, gs, 0.0, 0.5, 10.0)
+    assert gs[B_LATCH] == 1.0
+    reset_belt_guard(gs, 0.0, 0.0)
+    gs[B_LATCH], gs[B_P], gs[B_T] = 1.0, 0.0, 1.0  # calm at the hold point: the controller is back
+    assert belt_guard_command(gp, gs, 0.0, 0.5, 10.0) == 0.5
+    assert gs[B_LATCH] == 0.0
