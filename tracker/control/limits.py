@@ -31,11 +31,11 @@ twist under ``BELT_LOAD_TORQUE_NM`` and the model's gravity (:func:`belt_guard_l
 Assumptions: the belt's frequency and damping as modelled (measured: ±5 % frequency error and
 ×2 damping error absorbed, ±10 % let 3 runs in 1800 pass by up to 4.0°); motor-side hidden
 effects as for the rigid guard (offset, friction asymmetry, stiction, ripple, backlash, delay
-≤ ``belt_guard.HIDDEN_DELAY_S``, amplifier clip ≥ ``belt_guard.BACKUP_LIMIT_V``); load-side
+≤ ``belt_guard_design.HIDDEN_DELAY_S``, amplifier clip ≥ ``belt_guard_design.BACKUP_LIMIT_V``); load-side
 torques the model does not know ≤ ``BELT_LOAD_TORQUE_NM`` (their twist is invisible to the
 motor encoder: that is the physics the margin pays for); the axis starts at rest inside the
 lines. Under them neither a random search (1200 runs) nor the property test found a run past;
-what is proven is the backup's linear robustness (:func:`belt_guard.backup_spectral_radius`) and, for
+what is proven is the backup's linear robustness (:func:`belt_guard_design.backup_spectral_radius`) and, for
 the linear model, the prediction's end (a Lyapunov ellipsoid); the rest is measured, not a
 proof (docs/control.md, "Soft limits"). The motor side (encoder) is not kept inside.
 """

@@ -37,10 +37,9 @@ from tracker.control.belt_guard import (
     N_GP,
     N_GS,
     belt_guard_command,
-    design_belt_guard,
-    pack_belt_guard,
     reset_belt_guard,
 )
+from tracker.control.belt_guard_design import design_belt_guard, pack_belt_guard
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
 from tracker.control.limits import (
     GUARD_LATENCY_S,

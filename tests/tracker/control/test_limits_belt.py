@@ -17,12 +17,10 @@ from tracker.control.belt_guard import (
     N_GS,
     RELEASE_RAD_S,
     backup_keeps_inside,
-    backup_spectral_radius,
     belt_guard_command,
-    design_belt_guard,
-    pack_belt_guard,
     reset_belt_guard,
 )
+from tracker.control.belt_guard_design import backup_spectral_radius, design_belt_guard, pack_belt_guard
 from tracker.control.closed_loop import UNLIMITED, simulate_closed_loop
 from tracker.control.design import design_controller
 from tracker.control.gains import ObserverPdGains
