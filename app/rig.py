@@ -52,7 +52,9 @@ def build_engine(settings: Settings) -> Any:
     """The engine on the simulated rig, with the service's phase-margin floor."""
     from tracker.engine import Engine, EngineConfig
 
-    return Engine(build_driver(settings), EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg))
+    config = EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg,
+                          guard_margin_rad=math.radians(settings.guard_margin_deg))
+    return Engine(build_driver(settings), config)
 
 
 def soft_limit_rad(engine: Any, axis: str) -> float:

@@ -53,6 +53,10 @@ class Settings(BaseSettings):
     jog_timeout_s: float = Field(0.5, gt=0.0, le=5.0, description="a jog stops by itself after this")
     control_lock_ttl_s: float = Field(30.0, gt=0.0, description="manual control lapses when idle this long")
     min_phase_margin_deg: float = Field(45.0, ge=0.0, le=90.0, description="gains under this are refused")
+    guard_margin_deg: float = Field(
+        0.25, ge=0.0, le=40.0,
+        description="the soft-limit guard's line sits this far inside the limits (a belt the model "
+                    "does not know needs its twist at full torque: docs/control.md)")
     max_upload_bytes: int = Field(50_000_000, gt=0)
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 

@@ -60,3 +60,20 @@ def test_a_bad_rig_file_fails_before_the_server_starts(tmp_path: Path) -> None:
         check_settings(load_settings(None, rig_config=str(rig_file)))
     rig_file.write_text('{"pan": {"effects": ["offset"], "params": {"offset.torque": 0.01}}}')
     check_settings(load_settings(None, rig_config=str(rig_file)))
+
+
+def test_the_site_guard_margin_reaches_the_engine(tmp_path: Path) -> None:
+    """A site with a soft belt sets the guard margin in the config file; the engine's soft
+    limits use it, and a margin that leaves no room inside the limits is refused by name."""
+    import math
+
+    from app.rig import build_engine
+
+    cfg = tmp_path / "console.toml"
+    cfg.write_text("guard_margin_deg = 3.0\n")
+    engine = build_engine(load_settings(cfg))
+    assert engine.config.guard_margin_rad == pytest.approx(math.radians(3.0))
+    assert engine.limits("pan").guard_margin_rad == pytest.approx(math.radians(3.0))
+    cfg.write_text("guard_margin_deg = 60.0\n")
+    with pytest.raises(ConfigError, match="guard_margin_deg"):
+        load_settings(cfg)
