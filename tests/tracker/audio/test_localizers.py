@@ -201,3 +201,34 @@ def test_srp_phat_short_noisy_windows_regression():
 def test_snr_exponent_is_validated(square4):
     with pytest.raises(ConfigError, match="snr_exponent=-1"):
         make_localizer("srp_phat", square4, FS_HZ, snr_exponent=-1.0)
+
+
+@pytest.mark.parametrize("azimuth_deg", [35.0, -120.0])
+def test_steered_response_matches_the_gcc_lookup(square4, azimuth_deg):
+    """The exact steered response equals the interpolated GCC lookup; 1 at a plane wave's source."""
+    from tracker.audio.array import unit_vector
+    from tracker.audio.localizers.spectra import SrpGrid, gcc, steered_response
+
+    localizer = make_localizer("srp_phat", square4, FS_HZ)
+    cross = localizer.cross_spectra(free_field(square4, np.deg2rad(azimuth_deg), snr_db=40.0))
+    directions = np.deg2rad([azimuth_deg, azimuth_deg + 70.0])
+    grid = SrpGrid(square4, FS_HZ, directions, np.zeros(2), localizer.settings)
+    lookup = grid.response(gcc(cross, localizer.settings))
+    exact = [steered_response(cross, square4.delays_s(unit_vector(az, 0.0)), FS_HZ) for az in directions]
+    np.testing.assert_allclose(exact, lookup, atol=0.01)
+    assert exact[0] > 0.95 > 0.5 > exact[1]
+
+
+def test_srp_phat_confidence_separates_a_talker_from_noise(square4):
+    localizer = make_localizer("srp_phat", square4, FS_HZ)
+    talker = localizer.locate(free_field(square4, np.deg2rad(35.0), snr_db=10.0))
+    noise = localizer.locate(np.random.default_rng(0).standard_normal((4, FS_HZ)))
+    assert talker.confidence > 0.5 > 0.1 > noise.confidence
+
+
+def test_locate_with_gcc_is_locate_plus_the_gccs(square4):
+    localizer = make_localizer("srp_phat", square4, FS_HZ)
+    audio = free_field(square4, np.deg2rad(-70.0), snr_db=20.0)
+    estimate, g = localizer.locate_with_gcc(audio)
+    assert estimate == localizer.locate(audio)
+    assert g.shape == (6, localizer.settings.nfft * localizer.settings.upsample)

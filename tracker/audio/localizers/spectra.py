@@ -213,6 +213,27 @@ def gcc(cross: ComplexArray, settings: SpectralSettings) -> FloatArray:
     return np.asarray(np.fft.irfft(cross, n=n_lags, axis=-1) * (n_lags / (2.0 * total)))
 
 
+def steered_response(cross: ComplexArray, delays_s: FloatArray, fs_hz: int) -> float:
+    """Mean over pairs of the normalised GCC at one direction's pair delays, evaluated exactly.
+
+    ``mean_p sum_f Re(C_p(f) exp(-2 pi i f tau_p)) / sum_f |C_p(f)|``: the value :func:`gcc`
+    gives at lag ``-tau_p`` (1 for a single plane wave from that direction), without the
+    upsampled transform.
+
+    Parameters
+    ----------
+    cross : ndarray, shape (n_pairs, nfft // 2 + 1)
+        Weighted cross-spectra (zero outside the band).
+    delays_s : ndarray, shape (n_pairs,)
+        Delay of mic j behind mic i for the direction (:meth:`MicArray.delays_s`).
+    """
+    nfft = 2 * (cross.shape[1] - 1)
+    freqs = np.fft.rfftfreq(nfft, 1.0 / fs_hz)
+    steer = np.exp(-2j * np.pi * freqs[None, :] * delays_s[:, None])
+    total = np.sum(np.abs(cross), axis=1) + _EPS
+    return float(np.mean(np.sum((cross * steer).real, axis=1) / total))
+
+
 @dataclass(frozen=True, slots=True)
 class GridPeak:
     """The best direction on a grid and its steered response (mean GCC over pairs)."""
