@@ -1,41 +1,37 @@
 """Talker tracking on steered-response maps: a grid Bayes filter over azimuth and bearing rate.
 
-Instead of a peak per window, every short window's whole steered-response map (SRP-PHAT over
-a 1° azimuth grid) is evidence (track-before-detect): a reflection that wins one window's
-peak hardly moves a posterior that the direct path has fed for several windows.
+Every short window's whole SRP-PHAT map over a 1° azimuth grid is evidence (track-before-
+detect): a reflection that wins one window's peak hardly moves a posterior that the direct
+path has fed for several windows. The filter (an HMM on a grid; Stone et al., *Bayesian
+Multiple Target Tracking*, ch. 3), every setting in :class:`MapTrackerSettings`:
 
-The filter (an HMM on a grid; Stone et al., *Bayesian Multiple Target Tracking*, ch. 3):
+* state: azimuth cell × bearing rate (bank ``rates_rad_s``); each rate row shifts by
+  ``rate * dt`` per frame, blurred by ``diffusion_rad_per_sqrt_s``; old evidence fades (the
+  log-posterior decays with ``forget_tau_s``); a share ``rate_mixing`` per frame is redrawn
+  from the rate prior (``static_prior`` on "still"), all of it after ``coast_s`` of silence;
+* births: per speech frame a share ``birth_share`` is redrawn over azimuth, uniform plus
+  ``memory_share`` on remembered seats (median of a still talker's last positions,
+  ``memory_std_rad`` wide, kept ``memory_s``): known talkers are picked up sooner and a
+  seated talker's own seat steadies her track; a talker who walked this turn loses hers;
+* likelihood ``likelihood_floor + exp(sharpness * (p - max p))`` (the floor bounds what one
+  burst of reflections can do); windows the speech detector rejected count with
+  ``unvoiced_weight`` (quiet syllables; with ``unvoiced_births`` also a turn's first
+  syllables, which the detector accepts late) but never decide a switch.
 
-* state: azimuth cell × bearing rate from a bank ``rates_rad_s``; each rate row is shifted by
-  ``rate * dt`` every frame and blurred by ``diffusion_rad_per_sqrt_s * sqrt(dt)``; old
-  evidence fades (the log-posterior is multiplied by ``exp(-dt / forget_tau_s)``);
-* rate changes: each frame a share ``rate_mixing`` of the mass is redrawn from the rate
-  prior, which puts ``static_prior`` on "not moving"; after ``coast_s`` without speech all
-  of it is (a walker stops between turns);
-* talker changes: each speech frame a share ``birth_share`` of the mass is redrawn from the
-  birth prior over azimuth, uniform plus ``memory_share`` on the remembered seats of still
-  talkers (``memory_std_rad`` wide, forgotten after ``memory_s``): a talker seen before
-  is picked up after fewer windows;
-* measurement: ``likelihood = floor + exp(sharpness * (p - max p))`` of the window's map ``p``
-  (``likelihood_floor`` makes a burst of reflections one bounded factor, not a veto);
-  windows the speech detector rejected count with ``unvoiced_weight`` times the sharpness,
-  for the current talker only (quiet syllables; a cough far from her moves nothing).
+The camera operator on the posterior:
 
-The camera-operator policy on the posterior (every setting in :class:`MapTrackerSettings`):
-
-* the current talker's position is the posterior peak within ``gate_rad`` of her last one,
-  moving at most ``max_rate_rad_s``; her bearing rate is the least-squares slope of her
-  positions over the last ``rate_window_s`` (the bank's rate posterior is too timid);
-* a new talker (posterior mass ``switch_mass`` within ``gate_rad`` of a peak outside the
-  current talker's gate) must keep it for ``reaction_time_s`` before the camera goes there,
-  and not within ``min_hold_s`` of the last switch unless the floor was silent for
-  ``pause_tolerance_s``; a peak within ``reacquire_rad`` is the same talker found again
-  (the track restarts there; not a switch);
-* the shot moves when the talker leaves the ``deadband_rad`` around it; a talker faster than
-  ``moving_rate_rad_s`` is followed in ``moving_deadband_rad`` steps, led by ``rate * lead_s``;
-* ``wide_after_switches`` switches back and forth between the same two directions within
-  ``wide_window_s`` give a wide shot between them until one talker holds the floor for
-  ``wide_release_s``.
+* the talker is the posterior peak within ``gate_rad`` of her track (moving at most
+  ``max_rate_rad_s``); her rate the least-squares slope of her last ``rate_window_s``;
+* a new talker (mass ``switch_mass`` within the gate of a peak outside hers) heard within
+  ``onset_s`` of speech resuming after ``turn_gap_s`` of silence is taken at once (a turn
+  change); mid-speech (an interruption, or reflections) the mass must last
+  ``reaction_time_s``; never within ``min_hold_s`` of the last switch unless the floor was
+  silent for ``pause_tolerance_s``; within ``reacquire_rad`` of her track it is the same
+  talker found again (the track restarts; not a switch);
+* the shot moves when she leaves the ``deadband_rad`` around it; faster than
+  ``moving_rate_rad_s`` she is followed in ``moving_deadband_rad`` steps, led by
+  ``rate * lead_s``; ``wide_after_switches`` switches between the same two directions within
+  ``wide_window_s`` give a wide shot between them until one holds the floor ``wide_release_s``.
 """
 
 from __future__ import annotations
@@ -52,19 +48,15 @@ from tracker.errors import ConfigError, DataError
 FloatArray = NDArray[np.float64]
 
 
-def _wrap(angle_rad: float) -> float:
-    """Wrap into (-pi, pi]."""
-    return float(-((-angle_rad + np.pi) % (2 * np.pi) - np.pi))
-
-
 @dataclass(frozen=True, slots=True)
 class MapTrackerSettings:
     """Grid filter and camera policy of :class:`MapTracker`; every field adjustable."""
 
     sharpness: float = 20.0
-    forget_tau_s: float = 1.0
+    forget_tau_s: float = 1.5
     likelihood_floor: float = 0.02
     unvoiced_weight: float = 0.5
+    unvoiced_births: bool = True
     rates_rad_s: tuple[float, ...] = tuple(float(v) for v in np.deg2rad(np.arange(-12.0, 13.0, 2.0)))
     static_prior: float = 0.8
     rate_mixing: float = 0.05
@@ -77,7 +69,9 @@ class MapTrackerSettings:
     gate_rad: float = float(np.deg2rad(8.0))
     switch_mass: float = 0.5
     moving_mass: float = 0.6
-    reaction_time_s: float = 0.1
+    reaction_time_s: float = 0.2
+    turn_gap_s: float = 0.25
+    onset_s: float = 0.5
     min_hold_s: float = 2.0
     pause_tolerance_s: float = 1.5
     reacquire_rad: float = float(np.deg2rad(20.0))
@@ -93,26 +87,36 @@ class MapTrackerSettings:
     wide_azimuth_rad: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("sharpness", "forget_tau_s", "likelihood_floor", "unvoiced_weight",
-                     "diffusion_rad_per_sqrt_s", "memory_std_rad", "memory_s", "coast_s",
-                     "gate_rad", "reaction_time_s", "min_hold_s", "pause_tolerance_s",
-                     "reacquire_rad", "deadband_rad", "moving_rate_rad_s", "moving_deadband_rad",
-                     "lead_s", "rate_window_s", "max_rate_rad_s", "wide_window_s",
-                     "wide_release_s"):
+        fractions = ("static_prior", "rate_mixing", "birth_share", "memory_share", "switch_mass",
+                     "moving_mass")
+        for name in self.__slots__:
             value = getattr(self, name)
-            if not np.isfinite(value) or value < 0:
-                raise ConfigError(f"map tracker setting {name}={value} must be a finite value >= 0")
-        for name in ("static_prior", "rate_mixing", "birth_share", "memory_share", "switch_mass",
-                     "moving_mass"):
-            value = getattr(self, name)
-            if not 0.0 <= value <= 1.0:
+            if name in fractions and not 0.0 <= value <= 1.0:
                 raise ConfigError(f"map tracker setting {name}={value} must be within 0-1")
+            if isinstance(value, float) and name != "wide_azimuth_rad" and not (
+                    np.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"map tracker setting {name}={value} must be a finite value >= 0")
         if not self.rates_rad_s or 0.0 not in self.rates_rad_s:
             raise ConfigError(f"rates_rad_s={self.rates_rad_s} must include 0 (a seated talker)")
         if self.wide_after_switches < 2:
             raise ConfigError(f"wide_after_switches={self.wide_after_switches} must be >= 2")
         if self.memory_std_rad <= 0 or self.gate_rad <= 0:
             raise ConfigError("memory_std_rad and gate_rad must be > 0")
+
+
+_SEAT_POSITIONS = 30  # positions a seat keeps (it sits at their median)
+
+
+@dataclass(slots=True)
+class _Seat:
+    """Where a still talker was: the median of her recent tracked positions."""
+
+    positions_rad: list[float]
+    last_t_s: float
+
+    @property
+    def azimuth_rad(self) -> float:
+        return float(np.median(self.positions_rad))
 
 
 @dataclass(slots=True)
@@ -134,6 +138,7 @@ class MapTracker:
     _step_rad: float = field(init=False)
     _t_s: float | None = None
     _last_speech_t_s: float = -np.inf
+    _speech_run_t_s: float = -np.inf  # when speech resumed after a gap of turn_gap_s
     _talker_rad: float | None = None
     _talker_rate_rad_s: float = 0.0
     _elevation_rad: float | None = None
@@ -142,8 +147,9 @@ class MapTracker:
     _last_switch_t_s: float = -np.inf
     _switches: list[tuple[float, float, float]] = field(default_factory=list)
     _wide_rad: float | None = None
-    _seats: list[tuple[float, float]] = field(default_factory=list)  # (azimuth_rad, last t_s)
+    _seats: list[_Seat] = field(default_factory=list)
     _history: list[tuple[float, float]] = field(default_factory=list)  # (t_s, talker azimuth_rad)
+    _walked: bool = False  # the current talker has walked during this turn
 
     def __post_init__(self) -> None:
         az = np.asarray(self.azimuth_rad, dtype=float)
@@ -177,18 +183,23 @@ class MapTracker:
             return self._target(t_s)
         if speech:
             floor_open = t_s - self._last_speech_t_s > self.settings.pause_tolerance_s
+            if t_s - self._last_speech_t_s > self.settings.turn_gap_s:
+                self._speech_run_t_s = t_s
             if t_s - self._last_speech_t_s > self.settings.coast_s:
                 self._history = []  # a talker who paused is not still walking
+                self._walked = False
             self._update(t_s, p, self.settings.sharpness)
             self._decide(t_s, elevation_rad, floor_open)
             self._last_speech_t_s = t_s
-        elif moving and self.settings.unvoiced_weight > 0.0 and self._talker_rad is not None:
-            # Within a turn, windows the speech detector rejected (quiet syllables) still
-            # count, weakly, for the current talker; they never start a switch.
-            self._update(t_s, p, self.settings.unvoiced_weight * self.settings.sharpness, birth=False)
-            mass, mean = self._mass_near(self.marginal(), self._talker_rad)
-            if mass >= 0.5 * self.settings.switch_mass:
-                self._follow(t_s, mean, elevation_rad)
+        elif self.settings.unvoiced_weight > 0.0 and (
+                self.settings.unvoiced_births or (moving and self._talker_rad is not None)):
+            # Rejected windows count weakly (quiet syllables, a turn's onset), never decide.
+            self._update(t_s, p, self.settings.unvoiced_weight * self.settings.sharpness,
+                         birth=self.settings.unvoiced_births)
+            if moving and self._talker_rad is not None:
+                mass, peak = self._mass_near(self.marginal(), self._talker_rad)
+                if mass >= 0.5 * self.settings.switch_mass:
+                    self._follow(t_s, peak, elevation_rad)
         return self._target(t_s)
 
     def _predict(self, dt: float, moving: bool) -> None:
@@ -227,10 +238,14 @@ class MapTracker:
         """Uniform over azimuth plus ``memory_share`` on the remembered seats; sums to 1."""
         s, az = self.settings, self.azimuth_rad
         uniform = np.full(az.size, 1.0 / az.size)
-        self._seats = [seat for seat in self._seats if t_s - seat[1] <= s.memory_s]
-        if not self._seats or s.memory_share <= 0.0:
+        self._seats = [seat for seat in self._seats if t_s - seat.last_t_s <= s.memory_s]
+        # Seats near a talker who walked this turn are left out: they would hold her back.
+        current = self._talker_rad
+        seats = [seat.azimuth_rad for seat in self._seats if not self._walked or current is None
+                 or abs(seat.azimuth_rad - current) > s.gate_rad]
+        if not seats or s.memory_share <= 0.0:
             return uniform
-        bumps = sum(np.exp(-0.5 * ((az - a) / s.memory_std_rad) ** 2) for a, _ in self._seats)
+        bumps = sum(np.exp(-0.5 * ((az - a) / s.memory_std_rad) ** 2) for a in seats)
         bumps = np.asarray(bumps) / np.sum(bumps)
         return np.asarray((1.0 - s.memory_share) * uniform + s.memory_share * bumps)
 
@@ -241,10 +256,8 @@ class MapTracker:
     # -- the camera operator ---------------------------------------------------------------
 
     def _mass_near(self, marginal: FloatArray, centre_rad: float) -> tuple[float, float]:
-        """Posterior mass within the gate of ``centre_rad`` and the local peak there.
-
-        The peak is refined by a parabola through the best cell and its neighbours.
-        """
+        """Posterior mass within the gate of ``centre_rad`` and the local peak there (refined
+        by a parabola through the best cell and its neighbours)."""
         near = np.flatnonzero(np.abs(self.azimuth_rad - centre_rad) <= self.settings.gate_rad)
         mass = float(marginal[near].sum())
         if mass <= 0.0:
@@ -261,32 +274,34 @@ class MapTracker:
         s = self.settings
         marginal = self.marginal()
         peak = float(self.azimuth_rad[int(np.argmax(marginal))])
-        peak_mass, peak_mean = self._mass_near(marginal, peak)
-        if self._talker_rad is not None:
-            mass, mean = self._mass_near(marginal, self._talker_rad)
-            if mass >= 0.5 * s.switch_mass or abs(peak - self._talker_rad) <= s.gate_rad:
-                self._follow(t_s, mean, elevation_rad)
+        peak_mass, peak_at = self._mass_near(marginal, peak)
+        current = self._talker_rad
+        if current is not None:
+            mass, local = self._mass_near(marginal, current)
+            if mass >= 0.5 * s.switch_mass or abs(peak - current) <= s.gate_rad:
+                self._follow(t_s, local, elevation_rad)
                 self._candidate = None
                 return
         if peak_mass < s.switch_mass:
             self._candidate = None
             return
-        if self._candidate is None or abs(self._candidate[1] - peak_mean) > s.gate_rad:
-            self._candidate = (t_s, peak_mean)
-            if s.reaction_time_s > 0.0:
-                return
-        self._candidate = (self._candidate[0], peak_mean)
-        if t_s - self._candidate[0] < s.reaction_time_s - 1e-9:
+        if self._candidate is None or abs(self._candidate[1] - peak_at) > s.gate_rad:
+            self._candidate = (t_s, peak_at)
+        self._candidate = (self._candidate[0], peak_at)
+        # A voice that starts a turn (just after a gap) is taken at once; one that appears
+        # mid-speech (an interruption, or reflections) must persist for reaction_time_s.
+        turn_start = self._candidate[0] - self._speech_run_t_s <= s.onset_s
+        if not turn_start and t_s - self._candidate[0] < s.reaction_time_s - 1e-9:
             return
-        current = self._talker_rad
-        if current is not None and abs(peak_mean - current) <= s.reacquire_rad:
-            self._start_talker(t_s, peak_mean, elevation_rad)  # the same talker found again
+        if current is not None and abs(peak_at - current) <= s.reacquire_rad:
+            self._start_talker(t_s, peak_at, elevation_rad)  # the same talker found again
             return
         if current is None or floor_open or t_s - self._last_switch_t_s >= s.min_hold_s:
-            self._start_talker(t_s, peak_mean, elevation_rad)
+            self._start_talker(t_s, peak_at, elevation_rad)
+            self._walked = False
             if current is not None:
                 self._last_switch_t_s = t_s
-                self._switches.append((t_s, current, peak_mean))
+                self._switches.append((t_s, current, peak_at))
                 self._update_wide(t_s)
 
     def _follow(self, t_s: float, azimuth_rad: float, elevation_rad: float | None) -> None:
@@ -295,17 +310,24 @@ class MapTracker:
         s = self.settings
         if self._talker_rad is not None and self._history:
             reach = s.max_rate_rad_s * (t_s - self._history[-1][0]) + self._step_rad
-            azimuth_rad = self._talker_rad + float(np.clip(azimuth_rad - self._talker_rad, -reach, reach))
+            azimuth_rad = self._talker_rad + float(
+                np.clip(azimuth_rad - self._talker_rad, -reach, reach))
         self._talker_rad = azimuth_rad
         near = np.abs(self.azimuth_rad - azimuth_rad) <= s.gate_rad
         by_rate = self._posterior[:, near].sum(axis=1)
         total = float(by_rate.sum())
         moving_share = float(by_rate[self._rates != 0.0].sum()) / max(total, 1e-300)
-        if moving_share < s.moving_mass:
-            self._remember(t_s, azimuth_rad)
         self._history = [h for h in self._history if t_s - h[0] <= s.rate_window_s]
         self._history.append((t_s, azimuth_rad))
         self._talker_rate_rad_s = self._history_rate()
+        if abs(self._talker_rate_rad_s) >= s.moving_rate_rad_s:
+            # She walks: where she stood is no longer a seat.
+            self._walked = True
+            start = self._history[0][1]
+            self._seats = [seat for seat in self._seats
+                           if abs(seat.azimuth_rad - start) > s.gate_rad]
+        elif moving_share < s.moving_mass and not self._walked:
+            self._remember(t_s, azimuth_rad)
         if elevation_rad is not None:
             self._elevation_rad = elevation_rad if self._elevation_rad is None else (
                 self._elevation_rad + 0.2 * (elevation_rad - self._elevation_rad))
@@ -320,13 +342,15 @@ class MapTracker:
         return float(t @ (a - a.mean()) / (t @ t))
 
     def _remember(self, t_s: float, azimuth_rad: float) -> None:
-        """A still talker's seat (merged with a remembered one within the gate)."""
-        s = self.settings
-        for k, (a, _) in enumerate(self._seats):
-            if abs(a - azimuth_rad) <= s.gate_rad:
-                self._seats[k] = (a + 0.1 * (azimuth_rad - a), t_s)
-                return
-        self._seats.append((azimuth_rad, t_s))
+        """A still talker's position joins the nearest seat within the gate (or starts one)."""
+        near = [seat for seat in self._seats
+                if abs(seat.azimuth_rad - azimuth_rad) <= self.settings.gate_rad]
+        if near:
+            seat = min(near, key=lambda x: abs(x.azimuth_rad - azimuth_rad))
+            seat.positions_rad = [*seat.positions_rad[-(_SEAT_POSITIONS - 1):], azimuth_rad]
+            seat.last_t_s = t_s
+        else:
+            self._seats.append(_Seat([azimuth_rad], t_s))
 
     def _start_talker(self, t_s: float, azimuth_rad: float, elevation_rad: float | None) -> None:
         self._talker_rad = azimuth_rad
@@ -344,7 +368,7 @@ class MapTracker:
             return
         a, b = self._switches[-1][1], self._switches[-1][2]
         ends = [x for sw in self._switches for x in sw[1:]]
-        if all(min(abs(_wrap(x - a)), abs(_wrap(x - b))) <= s.gate_rad for x in ends):
+        if all(min(abs(x - a), abs(x - b)) <= s.gate_rad for x in ends):  # a map spans < 2π
             mid = float(np.angle(np.exp(1j * a) + np.exp(1j * b)))
             self._wide_rad = s.wide_azimuth_rad if s.wide_azimuth_rad is not None else mid
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, Protocol, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -96,6 +96,10 @@ class LocateResult:
         }
 
 
+class _LocatesWithGcc(Protocol):
+    def locate_with_gcc(self, frame: FloatArray) -> tuple[DirectionEstimate, FloatArray]: ...
+
+
 TrackerName = Literal["kalman", "map"]
 TRACKERS: tuple[TrackerName, ...] = ("kalman", "map")
 MAP_STEP_RAD = float(np.deg2rad(1.0))
@@ -161,6 +165,9 @@ class Pipeline:
         loc, peak_grid, map_grid = self.localizer, self._peak_grid, self._map_grid
         if peak_grid is None or map_grid is None or not isinstance(loc, SrpPhat):
             raise ConfigError("azimuth maps are computed only for tracker='map'")
+        if hasattr(loc, "locate_with_gcc"):  # the localizer hands out the GCCs it steered
+            estimate, g = cast(_LocatesWithGcc, loc).locate_with_gcc(frame)
+            return estimate, map_grid.response(g)
         frame = check_frame(frame, self.array, loc.settings.nfft)
         g = gcc(loc.cross_spectra(frame), loc.settings)
         peak = peak_grid.peak(g)
