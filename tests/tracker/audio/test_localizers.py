@@ -232,3 +232,16 @@ def test_locate_with_gcc_is_locate_plus_the_gccs(square4):
     estimate, g = localizer.locate_with_gcc(audio)
     assert estimate == localizer.locate(audio)
     assert g.shape == (6, localizer.settings.nfft * localizer.settings.upsample)
+
+
+def test_pair_cross_spectra_is_the_weighted_sum_of_pair_products(square4):
+    from tracker.audio.localizers.spectra import pair_cross_spectra
+
+    rng = np.random.default_rng(5)
+    spectra = rng.standard_normal((4, 7, 20)) + 1j * rng.standard_normal((4, 7, 20))
+    weights = rng.uniform(size=(7, 20))
+    i, j = np.array(square4.pairs).T
+    expected = (spectra[i] * np.conj(spectra[j]) * weights[None]).sum(axis=1)
+    np.testing.assert_allclose(pair_cross_spectra(spectra, square4, weights), expected, rtol=1e-12)
+    np.testing.assert_allclose(pair_cross_spectra(spectra, square4),
+                               (spectra[i] * np.conj(spectra[j])).sum(axis=1), rtol=1e-12)

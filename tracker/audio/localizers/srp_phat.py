@@ -20,6 +20,7 @@ from tracker.audio.localizers.spectra import (
     gcc,
     noise_floor,
     onset_weights,
+    pair_cross_spectra,
     phat,
     snr_ratio_weights,
     snr_weights,
@@ -98,13 +99,8 @@ class SrpPhat:
             onsets.append(onset_weights(spectra) if self.onset_weighting else None)
         if self.per_frame_phat:  # every STFT frame gets one vote (pyroomacoustics' SRP does this)
             spectra = spectra / (np.abs(spectra) + 1e-12)
-        i, j = np.array(self.array.pairs).T
-        products = spectra[i] * np.conj(spectra[j])  # (n_pairs, n_frames, n_freq)
-        crosses = [
-            phat(products.sum(axis=1) if w is None else np.einsum("ptf,tf->pf", products, w),
-                 self._mask, self.settings.phat_beta)
-            for w in onsets
-        ]
+        crosses = [phat(pair_cross_spectra(spectra, self.array, w), self._mask,
+                        self.settings.phat_beta) for w in onsets]
         if noise is None:
             return np.asarray(crosses[0] * share[None, :]), None
         ratio = snr_ratio_weights(power, noise, float(self.snr_exponent or 0.0))
