@@ -70,8 +70,8 @@ def main() -> None:
     base = replace(MeetingSettings(), tracker="map")
     trackers = {"kalman": replace(base, tracker="kalman"), "map": base}
     rows: dict[str, list[tuple[float, ...]]] = {name: [] for name in trackers}
-    print("seed tracker  on_target_%  frame_s  switches/changes | lost % of speech: framing "
-          "seated walker")
+    print("seed tracker  on_target_%  frame_s  switches/changes  jitter_deg | lost % of speech: "
+          "framing seated walker")
     for seed in _seeds(args.seeds):
         recording, turns = _audio(seed, args.duration, base, args.audio_cache)
         frames = _frames(seed, args.duration, recording, base, args.cache)
@@ -81,18 +81,19 @@ def main() -> None:
             sp = b["speech_s"]
             row = (seed, r.on_target_percent, r.time_to_frame_s, r.switches_per_minute,
                    r.talker_changes_per_minute, 100 * b["framing_s"] / sp,
-                   100 * b["seated_after_s"] / sp, 100 * b["walker_after_s"] / sp)
+                   100 * b["seated_after_s"] / sp, 100 * b["walker_after_s"] / sp,
+                   r.pan_jitter_deg)
             rows[name].append(row)
             print(f"{seed:4d} {name:7s} {row[1]:11.1f}  {row[2]:7.2f}  {row[3]:7.0f}/{row[4]:<8.0f}"
-                  f" | {row[5]:6.1f} {row[6]:6.1f} {row[7]:6.1f}", flush=True)
+                  f"{row[8]:6.2f}     | {row[5]:6.1f} {row[6]:6.1f} {row[7]:6.1f}", flush=True)
     for name, data in rows.items():
         a = np.array(data)
         for label, part in (("0-7", a[a[:, 0] <= 7]), ("8-13", a[a[:, 0] >= 8]), ("all", a)):
             if len(part):
                 m = part.mean(axis=0)
                 print(f"mean {name:7s} seeds {label:5s} on-target {m[1]:5.1f}  frame {m[2]:.2f} s  "
-                      f"extra switches/min {m[3] - m[4]:+.2f} | framing {m[5]:.1f} seated "
-                      f"{m[6]:.1f} walker {m[7]:.1f}")
+                      f"extra switches/min {m[3] - m[4]:+.2f}  jitter {m[8]:.2f}° | framing "
+                      f"{m[5]:.1f} seated {m[6]:.1f} walker {m[7]:.1f}")
 
 
 if __name__ == "__main__":
