@@ -1,37 +1,33 @@
 """Talker tracking on steered-response maps: a grid Bayes filter over azimuth and bearing rate.
 
-Every short window's whole SRP-PHAT map over a 1° azimuth grid is evidence (track-before-
-detect): a reflection that wins one window's peak hardly moves a posterior that the direct
-path has fed for several windows. The filter (an HMM on a grid; Stone et al., *Bayesian
-Multiple Target Tracking*, ch. 3), every setting in :class:`MapTrackerSettings`:
+Each short window's whole SRP-PHAT map (1° azimuth grid) is evidence (track-before-detect): a
+reflection that wins one window's peak hardly moves a posterior the direct path has fed for
+several windows. The filter (an HMM on a grid; Stone et al., *Bayesian Multiple Target
+Tracking*, ch. 3), every setting in :class:`MapTrackerSettings`:
 
-* state: azimuth cell × bearing rate (bank ``rates_rad_s``); each rate row shifts by
-  ``rate * dt`` per frame, blurred by ``diffusion_rad_per_sqrt_s``; old evidence fades (the
-  log-posterior decays with ``forget_tau_s``); a share ``rate_mixing`` per frame is redrawn
-  from the rate prior (``static_prior`` on "still"), all of it after ``coast_s`` of silence;
-* births: per speech frame a share ``birth_share`` is redrawn over azimuth, uniform plus
-  ``memory_share`` on remembered seats (median of a still talker's last positions,
-  ``memory_std_rad`` wide, kept ``memory_s``): known talkers are picked up sooner and a
-  seated talker's own seat steadies her track; a talker who walked this turn loses hers;
-* likelihood ``likelihood_floor + exp(sharpness * (p - max p))`` (the floor bounds what one
-  burst of reflections can do); windows the speech detector rejected count with
-  ``unvoiced_weight`` (quiet syllables; with ``unvoiced_births`` also a turn's first
-  syllables, which the detector accepts late) but never decide a switch.
+* state: azimuth × bearing rate (bank ``rates_rad_s``): rows shift by ``rate * dt``, blur by
+  ``diffusion_rad_per_sqrt_s``; the log-posterior fades with ``forget_tau_s``; a share
+  ``rate_mixing`` per frame is redrawn from the rate prior (``static_prior`` on "still"),
+  all of it after ``coast_s`` of silence;
+* births: per speech window a share ``birth_share`` is redrawn over azimuth, uniform plus
+  ``memory_share`` on seats (median of a still talker's last positions, ``memory_std_rad``,
+  kept ``memory_s``): known talkers are found sooner, a seated talker's seat steadies her
+  track; a talker who walked this turn loses hers;
+* likelihood ``likelihood_floor + exp(sharpness * w * (p - max p))``; ``w`` is the window's
+  confidence over the recent median, to the ``confidence_power`` (reverberant windows count
+  less); windows the speech detector rejected weigh ``unvoiced_weight`` times that (quiet
+  syllables; a turn's first ones with ``unvoiced_births``) and never decide a switch.
 
-The camera operator on the posterior:
-
-* the talker is the posterior peak within ``gate_rad`` of her track (moving at most
-  ``max_rate_rad_s``); her rate the least-squares slope of her last ``rate_window_s``;
-* a new talker (mass ``switch_mass`` within the gate of a peak outside hers) heard within
-  ``onset_s`` of speech resuming after ``turn_gap_s`` of silence is taken at once (a turn
-  change); mid-speech (an interruption, or reflections) the mass must last
-  ``reaction_time_s``; never within ``min_hold_s`` of the last switch unless the floor was
-  silent for ``pause_tolerance_s``; within ``reacquire_rad`` of her track it is the same
-  talker found again (the track restarts; not a switch);
-* the shot moves when she leaves the ``deadband_rad`` around it; faster than
-  ``moving_rate_rad_s`` she is followed in ``moving_deadband_rad`` steps, led by
-  ``rate * lead_s``; ``wide_after_switches`` switches between the same two directions within
-  ``wide_window_s`` give a wide shot between them until one holds the floor ``wide_release_s``.
+The camera operator: the talker is the posterior peak within ``gate_rad`` of her track (moving
+at most ``max_rate_rad_s``), her rate the slope of her last ``rate_window_s``. A new talker
+(mass ``switch_mass`` within the gate of a peak outside hers) is taken at once when heard within
+``onset_s`` of speech resuming after ``turn_gap_s`` of silence (a turn change), after
+``reaction_time_s`` when she cuts in mid-speech (or is a reflection); never within
+``min_hold_s`` of the last switch unless the floor was silent ``pause_tolerance_s``; within
+``reacquire_rad`` of the track she is the same talker found again (no switch). The shot moves
+when she leaves ``deadband_rad`` (``moving_deadband_rad`` above ``moving_rate_rad_s``, led by
+``rate * lead_s``); ``wide_after_switches`` switches between two directions within
+``wide_window_s`` give a wide shot between them until one holds the floor ``wide_release_s``.
 """
 
 from __future__ import annotations
@@ -57,6 +53,8 @@ class MapTrackerSettings:
     likelihood_floor: float = 0.02
     unvoiced_weight: float = 0.5
     unvoiced_births: bool = True
+    confidence_power: float = 2.0
+    confidence_window_s: float = 10.0
     rates_rad_s: tuple[float, ...] = tuple(float(v) for v in np.deg2rad(np.arange(-12.0, 13.0, 2.0)))
     static_prior: float = 0.8
     rate_mixing: float = 0.05
@@ -68,7 +66,6 @@ class MapTrackerSettings:
     coast_s: float = 1.2
     gate_rad: float = float(np.deg2rad(8.0))
     switch_mass: float = 0.5
-    moving_mass: float = 0.6
     reaction_time_s: float = 0.2
     turn_gap_s: float = 0.25
     onset_s: float = 0.5
@@ -87,8 +84,7 @@ class MapTrackerSettings:
     wide_azimuth_rad: float | None = None
 
     def __post_init__(self) -> None:
-        fractions = ("static_prior", "rate_mixing", "birth_share", "memory_share", "switch_mass",
-                     "moving_mass")
+        fractions = ("static_prior", "rate_mixing", "birth_share", "memory_share", "switch_mass")
         for name in self.__slots__:
             value = getattr(self, name)
             if name in fractions and not 0.0 <= value <= 1.0:
@@ -150,6 +146,7 @@ class MapTracker:
     _seats: list[_Seat] = field(default_factory=list)
     _history: list[tuple[float, float]] = field(default_factory=list)  # (t_s, talker azimuth_rad)
     _walked: bool = False  # the current talker has walked during this turn
+    _confidences: list[tuple[float, float]] = field(default_factory=list)  # speech windows'
 
     def __post_init__(self) -> None:
         az = np.asarray(self.azimuth_rad, dtype=float)
@@ -169,38 +166,46 @@ class MapTracker:
     # -- the grid filter -------------------------------------------------------------------
 
     def step(self, t_s: float, power_map: FloatArray, elevation_rad: float | None,
-             speech: bool) -> TrackPoint:
-        """Take one window's map (time order), shape (n_map,); return the camera target."""
-        p = np.asarray(power_map, dtype=float)
+             speech: bool, confidence: float = 1.0) -> TrackPoint:
+        """Take one window's map (time order), shape (n_map,), and the localizer's confidence
+        for it; return the camera target."""
+        p, s = np.asarray(power_map, dtype=float), self.settings
         if p.shape != self.azimuth_rad.shape:
             raise DataError(f"map at t={t_s:.3f} s has shape {p.shape}, grid has "
                             f"{self.azimuth_rad.shape}")
-        dt = 0.0 if self._t_s is None else max(0.0, t_s - self._t_s)
+        self._predict(0.0 if self._t_s is None else max(0.0, t_s - self._t_s),
+                      moving := t_s - self._last_speech_t_s <= s.coast_s)
         self._t_s = t_s
-        moving = t_s - self._last_speech_t_s <= self.settings.coast_s
-        self._predict(dt, moving)
-        if not np.all(np.isfinite(p)):
-            return self._target(t_s)
-        if speech:
-            floor_open = t_s - self._last_speech_t_s > self.settings.pause_tolerance_s
-            if t_s - self._last_speech_t_s > self.settings.turn_gap_s:
-                self._speech_run_t_s = t_s
-            if t_s - self._last_speech_t_s > self.settings.coast_s:
-                self._history = []  # a talker who paused is not still walking
-                self._walked = False
-            self._update(t_s, p, self.settings.sharpness)
-            self._decide(t_s, elevation_rad, floor_open)
+        gap = t_s - self._last_speech_t_s
+        if speech and np.all(np.isfinite(p)):
+            self._speech_run_t_s = t_s if gap > s.turn_gap_s else self._speech_run_t_s
+            if gap > s.coast_s:  # a talker who paused is not still walking
+                self._history, self._walked = [], False
+            self._update(t_s, p, s.sharpness * self._weight(t_s, confidence))
+            self._decide(t_s, elevation_rad, floor_open=gap > s.pause_tolerance_s)
             self._last_speech_t_s = t_s
-        elif self.settings.unvoiced_weight > 0.0 and (
-                self.settings.unvoiced_births or (moving and self._talker_rad is not None)):
+        elif np.all(np.isfinite(p)) and s.unvoiced_weight > 0.0 and (
+                s.unvoiced_births or (moving and self._talker_rad is not None)):
             # Rejected windows count weakly (quiet syllables, a turn's onset), never decide.
-            self._update(t_s, p, self.settings.unvoiced_weight * self.settings.sharpness,
-                         birth=self.settings.unvoiced_births)
+            weight = s.unvoiced_weight * self._weight(t_s, confidence, keep=False)
+            self._update(t_s, p, weight * s.sharpness, birth=s.unvoiced_births)
             if moving and self._talker_rad is not None:
                 mass, peak = self._mass_near(self.marginal(), self._talker_rad)
-                if mass >= 0.5 * self.settings.switch_mass:
+                if mass >= 0.5 * s.switch_mass:
                     self._follow(t_s, peak, elevation_rad)
         return self._target(t_s)
+
+    def _weight(self, t_s: float, confidence: float, keep: bool = True) -> float:
+        """A window's weight: its confidence over recent speech windows' median (``keep``: a
+        speech window, one of them), to the ``confidence_power``."""
+        s = self.settings
+        self._confidences = [c for c in self._confidences if t_s - c[0] <= s.confidence_window_s]
+        if keep or not self._confidences:
+            self._confidences.append((t_s, confidence))
+        median = float(np.median([c for _, c in self._confidences]))
+        if s.confidence_power <= 0.0 or median <= 0.0:
+            return 1.0
+        return float(np.clip(confidence / median, 0.0, 3.0) ** s.confidence_power)
 
     def _predict(self, dt: float, moving: bool) -> None:
         s, post = self.settings, self._posterior
@@ -313,10 +318,6 @@ class MapTracker:
             azimuth_rad = self._talker_rad + float(
                 np.clip(azimuth_rad - self._talker_rad, -reach, reach))
         self._talker_rad = azimuth_rad
-        near = np.abs(self.azimuth_rad - azimuth_rad) <= s.gate_rad
-        by_rate = self._posterior[:, near].sum(axis=1)
-        total = float(by_rate.sum())
-        moving_share = float(by_rate[self._rates != 0.0].sum()) / max(total, 1e-300)
         self._history = [h for h in self._history if t_s - h[0] <= s.rate_window_s]
         self._history.append((t_s, azimuth_rad))
         self._talker_rate_rad_s = self._history_rate()
@@ -326,7 +327,7 @@ class MapTracker:
             start = self._history[0][1]
             self._seats = [seat for seat in self._seats
                            if abs(seat.azimuth_rad - start) > s.gate_rad]
-        elif moving_share < s.moving_mass and not self._walked:
+        elif not self._walked:
             self._remember(t_s, azimuth_rad)
         if elevation_rad is not None:
             self._elevation_rad = elevation_rad if self._elevation_rad is None else (
@@ -334,8 +335,8 @@ class MapTracker:
 
     def _history_rate(self) -> float:
         """Least-squares bearing rate of the talker's last ``rate_window_s`` (0 when too short)."""
-        if len(self._history) < 4 or self._history[-1][0] - self._history[0][0] < 0.5 * (
-                self.settings.rate_window_s):
+        span_s = self._history[-1][0] - self._history[0][0] if self._history else 0.0
+        if len(self._history) < 4 or span_s < 0.5 * self.settings.rate_window_s:
             return 0.0
         t, a = np.array(self._history).T
         t = t - t.mean()
@@ -353,12 +354,8 @@ class MapTracker:
             self._seats.append(_Seat([azimuth_rad], t_s))
 
     def _start_talker(self, t_s: float, azimuth_rad: float, elevation_rad: float | None) -> None:
-        self._talker_rad = azimuth_rad
-        self._talker_rate_rad_s = 0.0
-        self._history = [(t_s, azimuth_rad)]
-        self._elevation_rad = elevation_rad
-        self._target_rad = azimuth_rad
-        self._candidate = None
+        self._talker_rad, self._target_rad, self._talker_rate_rad_s = azimuth_rad, azimuth_rad, 0.0
+        self._history, self._elevation_rad, self._candidate = [(t_s, azimuth_rad)], elevation_rad, None
 
     def _update_wide(self, t_s: float) -> None:
         """Go wide after repeated switching between the same two directions."""

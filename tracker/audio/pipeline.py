@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol, cast
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tracker.audio.array import MicArray
 from tracker.audio.localizers import DEFAULT_LOCALIZER, Localizer, make_localizer
-from tracker.audio.localizers.base import DirectionEstimate, check_frame, direction_grid, wrap_angle
-from tracker.audio.localizers.spectra import SrpGrid, gcc
+from tracker.audio.localizers.base import DirectionEstimate, direction_grid
+from tracker.audio.localizers.spectra import SrpGrid
 from tracker.audio.localizers.srp_phat import SrpPhat
 from tracker.audio.map_tracking import MapTracker, MapTrackerSettings
 from tracker.audio.tracking import TalkerTracker, TrackerSettings, TrackPoint
@@ -96,10 +96,6 @@ class LocateResult:
         }
 
 
-class _LocatesWithGcc(Protocol):
-    def locate_with_gcc(self, frame: FloatArray) -> tuple[DirectionEstimate, FloatArray]: ...
-
-
 TrackerName = Literal["kalman", "map"]
 TRACKERS: tuple[TrackerName, ...] = ("kalman", "map")
 MAP_STEP_RAD = float(np.deg2rad(1.0))
@@ -127,7 +123,6 @@ class Pipeline:
     map_tracking: MapTrackerSettings = field(default_factory=MapTrackerSettings)
     localizer: Localizer = field(init=False)
     map_azimuth_rad: FloatArray = field(init=False)
-    _peak_grid: SrpGrid | None = field(init=False, default=None)
     _map_grid: SrpGrid | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
@@ -140,43 +135,25 @@ class Pipeline:
             self._build_map_grids()
 
     def _build_map_grids(self) -> None:
-        """The localizer's own search grid (same peaks as ``locate``) and the 1° map grid."""
-        loc = self.localizer
-        if not isinstance(loc, SrpPhat):
+        """The 1° azimuth grid the maps are steered on (the localizer's azimuth range)."""
+        if not isinstance(self.localizer, SrpPhat):
             raise ConfigError(f"the map tracker needs the srp_phat localizer, not {self.method!r}")
-        opts = self.localizer_options
-        az_range = opts.get("azimuth_range_rad")
-        # SrpPhat's defaults; a test checks the estimates equal ``locate``'s.
-        az_step: float = opts.get("azimuth_step_rad", float(np.deg2rad(2.0)))
-        el_step: float = opts.get("elevation_step_rad", float(np.deg2rad(5.0)))
-        az, el = direction_grid(self.array, az_step, el_step, az_range)
-        self._peak_grid = SrpGrid(self.array, self.fs_hz, az, el, loc.settings)
+        az_range = self.localizer_options.get("azimuth_range_rad")
         map_az, _ = direction_grid(self.array, MAP_STEP_RAD, np.pi, az_range)
         self.map_azimuth_rad = np.unique(map_az)
         self._map_grid = SrpGrid(self.array, self.fs_hz, self.map_azimuth_rad,
-                                 np.zeros_like(self.map_azimuth_rad), loc.settings)
+                                 np.zeros_like(self.map_azimuth_rad), self.localizer.settings)
 
     def locate_with_map(self, frame: FloatArray) -> tuple[DirectionEstimate, FloatArray]:
-        """One window's estimate (as ``localizer.locate``) and its azimuth map, one STFT.
+        """One window's estimate (``localizer.locate``'s) and its azimuth map, one STFT.
 
-        The map is the steered response (mean PHAT-weighted GCC over pairs) at
-        :attr:`map_azimuth_rad` at zero elevation; shape (n_map,).
+        The map is the steered response (mean PHAT-weighted GCC over pairs) of the GCCs the
+        estimate came from, at :attr:`map_azimuth_rad` and zero elevation; shape (n_map,).
         """
-        loc, peak_grid, map_grid = self.localizer, self._peak_grid, self._map_grid
-        if peak_grid is None or map_grid is None or not isinstance(loc, SrpPhat):
+        if self._map_grid is None or not isinstance(self.localizer, SrpPhat):
             raise ConfigError("azimuth maps are computed only for tracker='map'")
-        if hasattr(loc, "locate_with_gcc"):  # the localizer hands out the GCCs it steered
-            estimate, g = cast(_LocatesWithGcc, loc).locate_with_gcc(frame)
-            return estimate, map_grid.response(g)
-        frame = check_frame(frame, self.array, loc.settings.nfft)
-        g = gcc(loc.cross_spectra(frame), loc.settings)
-        peak = peak_grid.peak(g)
-        estimate = DirectionEstimate(
-            azimuth_rad=float(wrap_angle(peak.azimuth_rad)),
-            elevation_rad=peak.elevation_rad if self.array.resolves_elevation else None,
-            confidence=float(np.clip(peak.power, 0.0, 1.0)),
-        )
-        return estimate, map_grid.response(g)
+        estimate, g = self.localizer.locate_with_gcc(frame)
+        return estimate, self._map_grid.response(g)
 
     def estimate_frames(self, audio: FloatArray) -> tuple[FrameEstimate, ...]:
         """Raw estimate of every window of ``audio``, shape (n_mics, n_samples)."""
@@ -225,7 +202,7 @@ class Pipeline:
             if f.power_map is None:
                 raise DataError(f"frame at t={f.t_s:.3f} s has no azimuth map (estimated for "
                                 "another tracker?)")
-            out.append(tracker.step(f.t_s, f.power_map, f.elevation_rad, f.speech))
+            out.append(tracker.step(f.t_s, f.power_map, f.elevation_rad, f.speech, f.confidence))
         return tuple(out)
 
     def run(self, audio: FloatArray) -> LocateResult:

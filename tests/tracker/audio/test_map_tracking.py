@@ -40,7 +40,7 @@ def synthetic_map(rng: np.random.Generator, talker_deg: float | None,
     return p
 
 
-def run(truth_deg, speech=None, reflections=None, settings=None, seed=0):
+def run(truth_deg, speech=None, reflections=None, settings=None, seed=0, confidence=None):
     """One map per hop; returns (times, target_deg, shots, talker_deg)."""
     rng = np.random.default_rng(seed)
     tracker = MapTracker(GRID_RAD, settings or MapTrackerSettings())
@@ -52,7 +52,8 @@ def run(truth_deg, speech=None, reflections=None, settings=None, seed=0):
     for k in range(n):
         talker_deg = None if np.isnan(truth_deg[k]) else truth_deg[k]
         p = synthetic_map(rng, talker_deg, reflections.get(k))
-        point = tracker.step(k * HOP_S, p, None, bool(speech[k]))
+        c = 0.6 if confidence is None else float(confidence[k])
+        point = tracker.step(k * HOP_S, p, None, bool(speech[k]), c)
         t.append(k * HOP_S)
         target.append(point.azimuth_rad / DEG)
         shots.append(point.shot)
@@ -137,6 +138,22 @@ def test_a_walkers_old_seat_does_not_hold_her_back():
     t, _, _, talker = run(truth, speech=~np.isnan(truth), seed=10)
     walking = t >= 3.5 + 1.5
     assert np.median(np.abs(talker[walking] - truth[walking])) < 3.0
+
+
+@pytest.mark.parametrize("burst_confidence, moves", [(0.6, True), (0.2, False)],
+                         ids=["as-confident-moves", "low-confidence-ignored"])
+def test_low_confidence_windows_count_less(burst_confidence, moves):
+    # Six windows mid-speech whose maps show only a source at 55°: as confident as her
+    # windows they are a new talker cutting in; at a third of her windows' confidence
+    # (reverberant windows, which the localizer's confidence ranks low) they are not.
+    truth = np.full(80, -10.0)
+    burst = range(40, 46)
+    truth[list(burst)] = np.nan
+    confidence = np.full(80, 0.6)
+    confidence[list(burst)] = burst_confidence
+    reflections = {k: 55.0 for k in burst}
+    t, target, _, _ = run(truth, reflections=reflections, confidence=confidence, seed=11)
+    assert bool(np.any(np.abs(target - 55.0) < 5.0)) == moves
 
 
 def test_minimum_hold_unless_the_floor_was_silent():
