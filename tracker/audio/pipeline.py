@@ -138,6 +138,9 @@ class Pipeline:
         """The 1° azimuth grid the maps are steered on (the localizer's azimuth range)."""
         if not isinstance(self.localizer, SrpPhat):
             raise ConfigError(f"the map tracker needs the srp_phat localizer, not {self.method!r}")
+        if self.array.head_mounted:  # its maps would need turning with the head, window by window
+            raise ConfigError(f"the map tracker does not take a head-mounted array ({self.array.name}) "
+                              "yet: use tracker='kalman'")
         az_range = self.localizer_options.get("azimuth_range_rad")
         map_az, _ = direction_grid(self.array, MAP_STEP_RAD, np.pi, az_range)
         self.map_azimuth_rad = np.unique(map_az)

@@ -5,7 +5,9 @@
 keeps a ring buffer of the last few seconds, and for every analysis hop runs the same
 localizer windows (short, long ``fine_window_s``) and speech detector as
 the batch :class:`~tracker.audio.pipeline.Pipeline`, feeding one persistent
-:class:`~tracker.audio.tracking.TalkerTracker` frame by frame. Streaming a recording block by
+:class:`~tracker.audio.tracking.TalkerTracker` (or, for ``Pipeline(tracker="map")``, each
+window's azimuth map to one :class:`~tracker.audio.map_tracking.MapTracker`) frame by
+frame. Streaming a recording block by
 block gives the batch pipeline's frames and track (the speech detector is computed on a
 window of buffered audio with enough history for its noise floor and enough look-ahead for
 its modulation test, so its decisions match the whole-recording ones).
@@ -37,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.audio.head import MAX_SWEEP_RAD, HeadPoses, frame_to_base, window_motion
+from tracker.audio.map_tracking import MapTracker
 from tracker.audio.pipeline import FrameEstimate, Pipeline
 from tracker.audio.tracking import TalkerTracker, TrackPoint
 from tracker.audio.vad import SpeechDetector
@@ -113,6 +116,9 @@ class StreamingLocator:
         self._lag_s = pipeline.fine_lag_fraction * 0.5 * (fine_s - short_s) if fine_s else 0.0
         self._separation_rad = float(talker_separation_rad)
         self._tracker = TalkerTracker(pipeline.tracking)
+        # Pipeline(tracker="map"): each window's azimuth map feeds the map tracker instead.
+        self._map_tracker = (MapTracker(pipeline.map_azimuth_rad, pipeline.map_tracking)
+                             if pipeline.tracker == "map" else None)
         self._buf = np.zeros((pipeline.array.n_mics, 0))
         self._buf_start = 0  # absolute sample index of self._buf[:, 0]
         self._next = 0  # index of the next frame to compute
@@ -226,12 +232,16 @@ class StreamingLocator:
 
     def _estimate(self, start: int, end: int, speech: bool) -> FrameEstimate:
         p = self.pipeline
-        est = p.localizer.locate(self._window(start, end))
+        power_map = None
+        if self._map_tracker is not None:
+            est, power_map = p.locate_with_map(self._window(start, end))
+        else:
+            est = p.localizer.locate(self._window(start, end))
         fine = None
         if speech and self._n_fine:
             fine = p.localizer.locate(self._window(end - self._n_fine, end)).azimuth_rad
         frame = FrameEstimate(0.0, 0.0, est.azimuth_rad, est.elevation_rad, est.confidence,
-                              speech, fine)
+                              speech, fine, power_map)
         if self.head_poses is None:
             return frame
         return self._to_base(frame, start, end)
@@ -249,6 +259,9 @@ class StreamingLocator:
 
     def _step(self, f: FrameEstimate) -> TrackPoint:
         """One tracker step with the arguments :meth:`Pipeline.track` gives it."""
+        if self._map_tracker is not None and f.power_map is not None:
+            return self._map_tracker.step(f.t_s, f.power_map, f.elevation_rad, f.speech,
+                                          f.confidence)
         return self._tracker.step(f.t_s, f.azimuth_rad, f.elevation_rad, f.confidence,
                                   f.speech, f.fine_azimuth_rad, self._lag_s)
 

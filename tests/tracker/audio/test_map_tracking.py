@@ -17,6 +17,7 @@ from tests.tracker.audio.conftest import FS_HZ, free_field
 from tracker.audio.array import MicArray
 from tracker.audio.map_tracking import MapTracker, MapTrackerSettings
 from tracker.audio.pipeline import Pipeline, WindowSettings
+from tracker.audio.stream import StreamingLocator, stream_blocks
 from tracker.errors import ConfigError, DataError
 
 HOP_S = 0.1
@@ -246,8 +247,30 @@ def test_map_pipeline_tracks_a_recorded_talker(map_pipeline: Pipeline, square4: 
         map_pipeline.track(tuple(dataclasses.replace(f, power_map=None) for f in result.frames))
 
 
+def test_streaming_gives_the_batch_frames_maps_and_track(map_pipeline: Pipeline,
+                                                        square4: MicArray):
+    rng = np.random.default_rng(2)
+    gap = 0.001 * rng.standard_normal((square4.n_mics, FS_HZ // 2))
+    audio = np.concatenate([gap, free_field(square4, np.deg2rad(35.0), duration_s=2.0, seed=1),
+                            gap, free_field(square4, np.deg2rad(-40.0), duration_s=2.0, seed=2),
+                            gap], axis=1)
+    batch = map_pipeline.run(audio)
+    loc = StreamingLocator(Pipeline(square4, FS_HZ, "srp_phat", WindowSettings(0.3, 0.1),
+                                    tracker="map", localizer_options=HALF_PLANE))
+    loc.keep_frames = True
+    out = stream_blocks(loc, (audio[:, k : k + 1234] for k in range(0, audio.shape[1], 1234)))
+    assert loc.frames == list(batch.frames)
+    assert all(np.array_equal(a.power_map, b.power_map) for a, b in zip(loc.frames, batch.frames,
+                                                                         strict=True))
+    assert [o.azimuth_rad for o in out if o.shot != "none"] == [
+        p.azimuth_rad for p in batch.track if p.shot != "none"]
+    assert abs(np.rad2deg(out[-1].azimuth_rad) + 40.0) < 3.0
+
+
 def test_map_tracker_needs_srp_phat_and_a_known_name(square4: MicArray):
     with pytest.raises(ConfigError, match="srp_phat"):
         Pipeline(square4, FS_HZ, "gcc_phat", tracker="map")
     with pytest.raises(ConfigError, match="unknown tracker"):
         Pipeline(square4, FS_HZ, tracker="particle")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="head-mounted"):
+        Pipeline(dataclasses.replace(square4, mount="head"), FS_HZ, tracker="map")
