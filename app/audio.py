@@ -153,17 +153,20 @@ def meeting_pipeline(fs_hz: int, array: Any = None) -> Pipeline:
     """The meeting's localizer, windows and tracker settings for audio at ``fs_hz``.
 
     A room-mounted array sits on the wall under the camera, so only -90°..90° is searched (no
-    mirror image of the wall); a head-mounted one turns away from the wall with the camera,
-    so it searches every azimuth of its own frame.
+    mirror image of the wall) and the map tracker frames the talkers; a head-mounted one turns
+    away from the wall with the camera, so it searches every azimuth of its own frame (with
+    the Kalman tracker: the map tracker does not turn its maps with the head yet).
     """
-    from tracker.audio.pipeline import Pipeline
+    from tracker.audio.pipeline import Pipeline, choose_tracker
     from tracker.scenarios.meeting import MeetingSettings
 
     settings = MeetingSettings()
     array = array if array is not None else load_meeting_array()
     options = {} if array.head_mounted else {"azimuth_range_rad": (-np.pi / 2, np.pi / 2)}
     return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
-                    localizer_options=options)
+                    localizer_options=options,
+                    tracker=choose_tracker(settings.method, array, options.get("azimuth_range_rad")),
+                    map_tracking=settings.map_tracking)
 
 
 def build_meeting_audio(seed: int, duration_s: float, array_file: Path | str | None = None

@@ -101,6 +101,16 @@ TRACKERS: tuple[TrackerName, ...] = ("kalman", "map")
 MAP_STEP_RAD = float(np.deg2rad(1.0))
 
 
+def choose_tracker(method: str, array: MicArray, azimuth_range_rad: tuple[float, float] | None
+                   ) -> TrackerName:
+    """The better tracker the set-up allows: ``"map"`` (81 % on target against 77 % on the
+    meeting's seeds 0-13) for ``srp_phat`` with a room-mounted array searching a limited
+    azimuth range (its map is a line, not a circle); ``"kalman"`` otherwise."""
+    if method == "srp_phat" and not array.head_mounted and azimuth_range_rad is not None:
+        return "map"
+    return "kalman"
+
+
 @dataclass
 class Pipeline:
     """VAD + localizer + talker tracker bound to one array and sample rate.

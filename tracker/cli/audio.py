@@ -11,7 +11,7 @@ import numpy as np
 from tracker.audio.array import load_array
 from tracker.audio.head import check_coverage, locate_head_mounted, read_encoder_log
 from tracker.audio.localizers import DEFAULT_LOCALIZER, LOCALIZERS
-from tracker.audio.pipeline import LocateResult, Pipeline, WindowSettings
+from tracker.audio.pipeline import TRACKERS, LocateResult, Pipeline, WindowSettings, choose_tracker
 from tracker.audio.sources import read_wav
 from tracker.errors import ConfigError
 
@@ -41,6 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     locate.add_argument("--front-only", action="store_true",
                         help="search only -90°..90° azimuth of the array's frame (array on a wall "
                              "or under a camera)")
+    locate.add_argument("--tracker", default="auto", choices=("auto", *TRACKERS),
+                        help="talker tracker: map (steered-response maps; srp_phat, room-mounted, "
+                             "--front-only) or kalman (window peaks); auto picks map where it applies")
     locate.add_argument("--json", action="store_true", help="print the JSON contract")
     locate.set_defaults(func=run_locate)
     audio.set_defaults(func=lambda args: _help(audio))
@@ -63,9 +66,11 @@ def run_locate(args: argparse.Namespace) -> int:
     if args.method in ("seed_rms", "gcc_phat"):
         options = {}
     fine_s = args.fine_window_s if args.fine_window_s and args.fine_window_s > 0 else None
+    az_range = options.get("azimuth_range_rad")
+    tracker = choose_tracker(args.method, array, az_range) if args.tracker == "auto" else args.tracker
     pipeline = Pipeline(array, fs_hz, args.method,
                         WindowSettings(args.window_s, args.hop_s, fine_s),
-                        localizer_options=options)
+                        localizer_options=options, tracker=tracker)
     if array.head_mounted:
         if args.encoder is None:
             raise ConfigError(f"{array.name} is head-mounted (\"mount\": \"head\"): give the "

@@ -60,6 +60,22 @@ def test_every_method_runs_from_the_command_line(recording_wav, capsys, method):
     assert json.loads(capsys.readouterr().out)["frames"]
 
 
+@pytest.mark.parametrize("tracker", ["auto", "map", "kalman"])
+def test_both_trackers_frame_the_talker_from_the_command_line(recording_wav, capsys, tracker):
+    """``--front-only`` with srp_phat and a room array takes the map tracker by default; either
+    tracker ends on the talker at 35°."""
+    assert main(["audio", "locate", recording_wav, "--array", SQUARE, "--front-only",
+                 "--tracker", tracker, "--json"]) == 0
+    track = json.loads(capsys.readouterr().out)["track"]
+    assert abs(track[-1]["azimuth_deg"] - 35.0) < 5.0
+
+
+def test_the_map_tracker_with_another_localizer_is_a_one_line_error(recording_wav, capsys):
+    assert main(["audio", "locate", recording_wav, "--array", SQUARE, "--method", "gcc_phat",
+                 "--tracker", "map"]) == 2
+    assert "srp_phat" in _error_line(capsys)
+
+
 def test_readable_summary(recording_wav, capsys):
     assert main(["audio", "locate", recording_wav, "--array", SQUARE]) == 0
     out = capsys.readouterr().out
@@ -186,3 +202,14 @@ def test_an_encoder_log_that_stops_early_is_a_one_line_error(head_recording, tmp
     assert main(["audio", "locate", wav, "--array", array, "--encoder", str(short)]) == 2
     line = _error_line(capsys)
     assert "short.csv" in line and "0.00-1.50 s" in line and "0-4.00 s" in line
+
+
+def test_auto_takes_the_map_tracker_only_where_it_applies():
+    from tracker.audio.pipeline import choose_tracker
+
+    square, seed_pairs = example_array("square4_65mm"), load_array(ARRAYS_DIR / "seed_pairs.json")
+    front = (-np.pi / 2, np.pi / 2)
+    assert choose_tracker("srp_phat", square, front) == "map"
+    assert choose_tracker("srp_phat", square, None) == "kalman"  # a full circle: its map is a line
+    assert choose_tracker("gcc_phat", square, front) == "kalman"
+    assert seed_pairs.head_mounted and choose_tracker("srp_phat", seed_pairs, front) == "kalman"
