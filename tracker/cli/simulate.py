@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import json
 import sys
@@ -57,6 +58,8 @@ def register(subparsers: Any) -> None:
         "--record", default=None, metavar="FILE.csv", help="write the run as a t,u,theta log (one per axis)"
     )
     p.add_argument("--seed", type=int, default=0, help="meeting: random seed")
+    p.add_argument("--tracker", default=None, choices=("map", "kalman"),
+                   help="meeting: the talker tracker (default map; kalman for comparison)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)
 
@@ -121,7 +124,10 @@ def _run_meeting(args: argparse.Namespace) -> int:
     except ModuleNotFoundError as exc:
         raise ConfigError(f"the meeting scenario is not available ({exc.name} is missing)") from None
     duration = 60.0 if args.duration is None else args.duration
-    result = meeting.run_meeting(seed=args.seed, duration_s=duration)
+    settings = meeting.MeetingSettings()
+    if args.tracker is not None:
+        settings = dataclasses.replace(settings, tracker=args.tracker)
+    result = meeting.run_meeting(seed=args.seed, duration_s=duration, settings=settings)
     figures = result.to_dict() if hasattr(result, "to_dict") else result
     if args.json:
         print(json.dumps(figures, indent=2))

@@ -17,7 +17,7 @@ so its frame is the pan frame. Figures (targets from issue 4, item 7):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -85,6 +85,7 @@ class MeetingResult:
     duration_s: float
     seed: int
     plant: str
+    tracker: str = ""
 
     def to_dict(self) -> dict[str, float | int | str]:
         """JSON-ready figures."""
@@ -97,6 +98,7 @@ class MeetingResult:
             "duration_s": round(float(self.duration_s), 2),
             "seed": int(self.seed),
             "plant": self.plant,
+            "tracker": self.tracker,
         }
 
 
@@ -240,6 +242,7 @@ def camera_result(recording: room.Recording, turns: tuple[Turn, ...],
     target_rad = np.asarray(np.where(index >= 0, targets[np.clip(index, 0, None)], 0.0), dtype=float)
     pan_rad, plant = _pan_response(target_rad)
     result = score_meeting(recording, turns, times, pan_rad, targets, seed, plant)
+    result = replace(result, tracker=pipeline.tracker)
     return CameraRun(times, target_rad, pan_rad, track, result)
 
 

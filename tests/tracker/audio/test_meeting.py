@@ -37,6 +37,7 @@ def test_short_meeting_figures(short_meeting):
     assert result.switches_per_minute <= 2.0 * result.talker_changes_per_minute
     assert result.pan_jitter_deg < 5.0
     assert "twin" in result.plant
+    assert data["tracker"] == "map"  # the meeting's default tracker, named in the figures
 
 
 def test_meeting_duration_is_checked():
