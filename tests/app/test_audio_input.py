@@ -249,11 +249,25 @@ class _HeadMountedCapture:
         self.closed = True
 
 
+def test_the_meeting_pipeline_takes_the_map_tracker_for_both_mounts(tmp_path: Path) -> None:
+    """Room-mounted: maps steered over the wall's front half. Head-mounted: every head-frame
+    azimuth steered, each map turned onto the base frame's front half."""
+    from tracker.audio.array import load_array
+
+    room_pipeline = app_audio.meeting_pipeline(FS_HZ, example_array("square4_65mm"))
+    head_pipeline = app_audio.meeting_pipeline(FS_HZ, load_array(head_square(tmp_path)))
+    assert room_pipeline.tracker == head_pipeline.tracker == "map"
+    assert room_pipeline.steer_azimuth_rad.size == room_pipeline.map_azimuth_rad.size == 181
+    assert head_pipeline.steer_azimuth_rad.size == 360 and head_pipeline.map_azimuth_rad.size == 181
+    assert math.degrees(head_pipeline.map_azimuth_rad[0]) == pytest.approx(-90.0)
+
+
 def test_a_head_mounted_array_steers_the_camera_in_the_base_frame(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Closed loop: the head turns toward the talker, the array turns with it, and the engine's
-    pan/tilt fed to the stream keep her at 35° in the base frame. Without them the loop would
-    settle at 17.5° (the head-frame estimate 35° - pan taken as the target)."""
+    pan/tilt fed to the stream keep her at 35° in the base frame (the map tracker, each window's
+    map turned with the head). Without them the loop would settle at 17.5° (the head-frame
+    estimate 35° - pan taken as the target)."""
     import tracker.audio.sources as sources
     from tracker.audio.array import load_array
     from tracker.drivers.sim import SimDriver
@@ -287,6 +301,7 @@ def test_a_head_mounted_array_steers_the_camera_in_the_base_frame(
     finally:
         stream.close()
     assert stream.locator is not None and stream.locator.head_poses is not None
+    assert stream.locator.pipeline.tracker == "map"
     assert len(stream.locator.head_poses) > 30  # one reading per block
     st = engine.status()
     assert st.mode == "tracking" and st.active_talker is not None and "+35°" in st.active_talker

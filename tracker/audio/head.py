@@ -23,6 +23,14 @@ direction: its confidence becomes 0 (the tracker skips it) and a refining window
 is dropped. ``MAX_SWEEP_RAD`` (10°) is the sweep of the head's axis, over the loud parts of
 the window, beyond which this happens.
 
+The map tracker's azimuth maps (``Pipeline(tracker="map")``) are turned the same way
+(:func:`map_to_base`): each head-frame cell moves to the base azimuth its direction has under
+the window's mean rotation, and the map is resampled onto the tracker's fixed base-frame grid.
+For a level head this is the head-frame map shifted by the window's mean pan; on a tilted head
+the maps are still steered at zero head-frame elevation, so a cell is placed where a talker at
+the array's height would be (as :func:`direction_to_base` does for a flat array's estimate),
+and a talker above or below the head's plane is heard slightly off her true azimuth.
+
 Times are on the audio's clock: seconds from the recording's (or stream's) first sample.
 """
 
@@ -197,12 +205,66 @@ def direction_to_base(azimuth_rad: float, elevation_rad: float | None, r_world_h
     return float(math.atan2(u[1], u[0])), None
 
 
+def azimuths_to_base(azimuth_rad: FloatArray, r_world_head: FloatArray) -> FloatArray:
+    """Base-frame azimuths of head-frame azimuths measured by a flat array, shape like the input.
+
+    :func:`direction_to_base`'s flat-array case (the talker at the array's height) for many
+    azimuths at once: each azimuth's half-circle meets the base frame's horizontal plane at
+    the head-frame elevation ``e`` nearest 0 solving ``cos(e)(r31 cos a + r32 sin a) + r33 sin(e) = 0``.
+    """
+    r = np.asarray(r_world_head, dtype=float)
+    a = np.asarray(azimuth_rad, dtype=float)
+    horizontal = r[2, 0] * np.cos(a) + r[2, 1] * np.sin(a)
+    phase = np.arctan2(r[2, 2], horizontal)
+    candidates = np.remainder(np.stack([phase + np.pi / 2, phase - np.pi / 2]) + np.pi,
+                              2 * np.pi) - np.pi
+    e = np.clip(np.where(np.abs(candidates[0]) <= np.abs(candidates[1]), candidates[0], candidates[1]),
+                -np.pi / 2, np.pi / 2)
+    u = unit_vector(a, e) @ r.T  # (..., 3) base-frame unit vectors
+    return np.asarray(np.arctan2(u[..., 1], u[..., 0]))
+
+
+def map_to_base(power_map: FloatArray, head_azimuth_rad: FloatArray, base_azimuth_rad: FloatArray,
+                r_world_head: FloatArray) -> FloatArray:
+    """A head-frame azimuth map resampled onto a base-frame grid (see the module docstring).
+
+    Parameters
+    ----------
+    power_map : ndarray, shape (n_head,)
+        Steered response at ``head_azimuth_rad`` (increasing, evenly spaced, rad).
+    base_azimuth_rad : ndarray, shape (n_base,)
+        The tracker's base-frame grid (rad).
+    r_world_head : ndarray, shape (3, 3)
+        The head's (mean) rotation over the window.
+
+    Returns
+    -------
+    ndarray, shape (n_base,): linear interpolation between the moved head cells (across ±180°
+    when the head grid is a full circle). Base cells the head grid does not reach (a head-frame
+    search narrower than a full circle) get the map's minimum: nothing is heard there, so no
+    talker can be found there.
+    """
+    p = np.asarray(power_map, dtype=float)
+    head = np.asarray(head_azimuth_rad, dtype=float)
+    base = np.asarray(base_azimuth_rad, dtype=float)
+    moved = np.unwrap(azimuths_to_base(head, r_world_head))  # increasing for a tilt below 90°
+    step = (head[-1] - head[0]) / (head.size - 1)
+    if head.size * step >= 2 * np.pi - 0.5 * step:  # a full circle: no edge to fall off
+        return np.asarray(np.interp(base, moved, p, period=2 * np.pi))
+    x = moved[0] + np.remainder(base - moved[0], 2 * np.pi)
+    return np.asarray(np.interp(x, moved, p, left=float(p.min()), right=float(p.min())))
+
+
 def frame_to_base(frame: FrameEstimate, short: HeadMotion, fine: HeadMotion | None,
-                  max_sweep_rad: float = MAX_SWEEP_RAD) -> FrameEstimate:
+                  max_sweep_rad: float = MAX_SWEEP_RAD, map_grids: tuple[FloatArray, FloatArray]
+                  | None = None) -> FrameEstimate:
     """A head-frame window estimate in the base frame (the short window's and the fine one's).
 
     A window over which the head swept more than ``max_sweep_rad`` carries no direction: the
-    short one gets confidence 0, the fine one is dropped (see the module docstring).
+    short one gets confidence 0, the fine one is dropped (see the module docstring), and its
+    map (if any) becomes NaN, which the map tracker skips. ``map_grids`` (head grid, base
+    grid; :attr:`Pipeline.steer_azimuth_rad`, :attr:`Pipeline.map_azimuth_rad`) turns the
+    frame's ``power_map`` with :func:`map_to_base`.
     """
     az, el = direction_to_base(frame.azimuth_rad, frame.elevation_rad, short.r_world_head)
     confidence = frame.confidence if short.sweep_rad <= max_sweep_rad else 0.0
@@ -213,8 +275,13 @@ def frame_to_base(frame: FrameEstimate, short: HeadMotion, fine: HeadMotion | No
         else:
             fine_az = direction_to_base(fine_az, None, fine.r_world_head,
                                         el if el is not None else 0.0)[0]
+    power_map = frame.power_map
+    if power_map is not None and map_grids is not None:
+        head_grid, base_grid = map_grids
+        power_map = (map_to_base(power_map, head_grid, base_grid, short.r_world_head)
+                     if short.sweep_rad <= max_sweep_rad else np.full(base_grid.shape, np.nan))
     return replace(frame, azimuth_rad=az, elevation_rad=el, confidence=confidence,
-                   fine_azimuth_rad=fine_az)
+                   fine_azimuth_rad=fine_az, power_map=power_map)
 
 
 def window_motion(poses: HeadPoses, window: FloatArray, start_s: float, end_s: float
@@ -240,8 +307,15 @@ def frames_to_base(frames: tuple[FrameEstimate, ...], audio: FloatArray, pipelin
         if f.fine_azimuth_rad is not None:
             lo = max(0, end - n_fine)
             fine = window_motion(poses, audio[:, lo:end], lo / fs, end / fs)
-        out.append(frame_to_base(f, short, fine, max_sweep_rad))
+        out.append(frame_to_base(f, short, fine, max_sweep_rad, map_grids(pipeline)))
     return tuple(out)
+
+
+def map_grids(pipeline: Pipeline) -> tuple[FloatArray, FloatArray] | None:
+    """The (head-frame steering, base-frame tracker) azimuth grids of a map-tracking pipeline."""
+    if pipeline.tracker != "map":
+        return None
+    return pipeline.steer_azimuth_rad, pipeline.map_azimuth_rad
 
 
 def check_coverage(poses: HeadPoses, duration_s: float, tolerance_s: float, source: str) -> None:

@@ -47,8 +47,10 @@ class FrameEstimate:
     """One analysis window's raw estimate.
 
     ``t_s`` is the window centre, ``end_s`` the moment a live system would have it.
-    ``power_map`` (only for the map tracker) is the short window's steered response over
-    :attr:`Pipeline.map_azimuth_rad`, shape (n_map,); it takes no part in equality.
+    ``power_map`` (only for the map tracker) is the short window's steered response, shape
+    (n_map,), over :attr:`Pipeline.map_azimuth_rad` (the base frame) or, for a head-mounted
+    array before :func:`tracker.audio.head.frames_to_base`, over
+    :attr:`Pipeline.steer_azimuth_rad` (the head frame); it takes no part in equality.
     """
 
     t_s: float
@@ -104,9 +106,14 @@ MAP_STEP_RAD = float(np.deg2rad(1.0))
 def choose_tracker(method: str, array: MicArray, azimuth_range_rad: tuple[float, float] | None
                    ) -> TrackerName:
     """The better tracker the set-up allows: ``"map"`` (81 % on target against 77 % on the
-    meeting's seeds 0-13) for ``srp_phat`` with a room-mounted array searching a limited
-    azimuth range (its map is a line, not a circle); ``"kalman"`` otherwise."""
-    if method == "srp_phat" and not array.head_mounted and azimuth_range_rad is not None:
+    meeting's seeds 0-13) for ``srp_phat`` when talkers are searched in a limited base-frame
+    azimuth range ``azimuth_range_rad`` (the localizer's range for a room-mounted array,
+    :attr:`Pipeline.base_azimuth_range_rad` for a head-mounted one); ``"kalman"`` otherwise.
+
+    A full-circle search keeps the Kalman tracker: the map tracker's grid is a line, not a
+    circle (a talker crossing ±180° would be lost at its edges).
+    """
+    if method == "srp_phat" and azimuth_range_rad is not None:
         return "map"
     return "kalman"
 
@@ -119,6 +126,13 @@ class Pipeline:
     the short and long windows' peaks) or ``"map"`` (:mod:`tracker.audio.map_tracking`, fed
     each short window's steered-response map over a 1° azimuth grid, computed from the same
     cross-spectra as its estimate; needs the ``srp_phat`` localizer).
+
+    ``base_azimuth_range_rad`` (head-mounted arrays with the map tracker, required there): the
+    base-frame azimuth range (rad) where talkers can be, the map tracker's fixed grid
+    :attr:`map_azimuth_rad`. The maps are steered over the localizer's range in the head frame
+    (:attr:`steer_azimuth_rad`) and turned into the base frame window by window with the head's
+    angles (:func:`tracker.audio.head.map_to_base`). A room-mounted array's maps are steered
+    straight on the base grid (the localizer's ``azimuth_range_rad``).
     """
 
     array: MicArray
@@ -131,8 +145,10 @@ class Pipeline:
     fine_lag_fraction: float = 1.0
     tracker: TrackerName = "kalman"
     map_tracking: MapTrackerSettings = field(default_factory=MapTrackerSettings)
+    base_azimuth_range_rad: tuple[float, float] | None = None
     localizer: Localizer = field(init=False)
     map_azimuth_rad: FloatArray = field(init=False)
+    steer_azimuth_rad: FloatArray = field(init=False)
     _map_grid: SrpGrid | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
@@ -140,28 +156,41 @@ class Pipeline:
             raise ConfigError(f"unknown tracker {self.tracker!r}; choose one of: {', '.join(TRACKERS)}")
         self.localizer = make_localizer(self.method, self.array, self.fs_hz,
                                         **self.localizer_options)
-        self.map_azimuth_rad = np.zeros(0)
+        self.map_azimuth_rad = self.steer_azimuth_rad = np.zeros(0)
+        if self.base_azimuth_range_rad is not None and not self.array.head_mounted:
+            raise ConfigError(f"base_azimuth_range_rad applies to head-mounted arrays; {self.array.name} "
+                              "is room-mounted: its localizer's azimuth_range_rad is in the base frame")
         if self.tracker == "map":
             self._build_map_grids()
 
     def _build_map_grids(self) -> None:
-        """The 1° azimuth grid the maps are steered on (the localizer's azimuth range)."""
+        """The 1° azimuth grids: the maps' steering grid (the localizer's azimuth range, in
+        the array's frame) and the tracker's base-frame grid (the same for a room-mounted array)."""
         if not isinstance(self.localizer, SrpPhat):
             raise ConfigError(f"the map tracker needs the srp_phat localizer, not {self.method!r}")
-        if self.array.head_mounted:  # its maps would need turning with the head, window by window
-            raise ConfigError(f"the map tracker does not take a head-mounted array ({self.array.name}) "
-                              "yet: use tracker='kalman'")
         az_range = self.localizer_options.get("azimuth_range_rad")
-        map_az, _ = direction_grid(self.array, MAP_STEP_RAD, np.pi, az_range)
-        self.map_azimuth_rad = np.unique(map_az)
-        self._map_grid = SrpGrid(self.array, self.fs_hz, self.map_azimuth_rad,
-                                 np.zeros_like(self.map_azimuth_rad), self.localizer.settings)
+        steer_az, _ = direction_grid(self.array, MAP_STEP_RAD, np.pi, az_range)
+        self.steer_azimuth_rad = self.map_azimuth_rad = np.unique(steer_az)
+        if self.array.head_mounted:
+            base = self.base_azimuth_range_rad
+            if base is None:
+                raise ConfigError(f"the map tracker with a head-mounted array ({self.array.name}) "
+                                  "needs base_azimuth_range_rad, the base-frame range where talkers "
+                                  "can be (its grid is a line, not a circle); or use tracker='kalman'")
+            lo, hi = base
+            if not (-2 * np.pi <= lo < hi <= lo + 2 * np.pi and hi <= 2 * np.pi):
+                raise ConfigError(f"base_azimuth_range_rad={base} must be increasing, within ±2π "
+                                  "and at most a full turn")
+            self.map_azimuth_rad = np.linspace(lo, hi, max(3, int(round((hi - lo) / MAP_STEP_RAD)) + 1))
+        self._map_grid = SrpGrid(self.array, self.fs_hz, self.steer_azimuth_rad,
+                                 np.zeros_like(self.steer_azimuth_rad), self.localizer.settings)
 
     def locate_with_map(self, frame: FloatArray) -> tuple[DirectionEstimate, FloatArray]:
         """One window's estimate (``localizer.locate``'s) and its azimuth map, one STFT.
 
         The map is the steered response (mean PHAT-weighted GCC over pairs) of the GCCs the
-        estimate came from, at :attr:`map_azimuth_rad` and zero elevation; shape (n_map,).
+        estimate came from, at :attr:`steer_azimuth_rad` and zero elevation (in the array's
+        frame; for a room-mounted array that is :attr:`map_azimuth_rad`); shape (n_steer,).
         """
         if self._map_grid is None or not isinstance(self.localizer, SrpPhat):
             raise ConfigError("azimuth maps are computed only for tracker='map'")
@@ -215,6 +244,9 @@ class Pipeline:
             if f.power_map is None:
                 raise DataError(f"frame at t={f.t_s:.3f} s has no azimuth map (estimated for "
                                 "another tracker?)")
+            if self.array.head_mounted and f.power_map.shape != self.map_azimuth_rad.shape:
+                raise DataError(f"frame at t={f.t_s:.3f} s has a head-frame map: a head-mounted "
+                                "array's frames go through tracker.audio.head.locate_head_mounted")
             out.append(tracker.step(f.t_s, f.power_map, f.elevation_rad, f.speech, f.confidence))
         return tuple(out)
 

@@ -19,7 +19,8 @@ top of the half window.
 A head-mounted array (``"mount": "head"``) measures in the head frame: the producer gives the
 head's encoder angles on the stream's clock (``push(block, head_pan_rad=..., head_tilt_rad=...)``
 for the angles while the block was recorded, or time-stamped readings in :attr:`head_poses`),
-and every window's estimate is turned into the base frame with the head's power-weighted mean
+and every window's estimate (and, for the map tracker, its azimuth map, resampled onto the
+tracker's base-frame grid) is turned into the base frame with the head's power-weighted mean
 rotation over that window (:mod:`tracker.audio.head`) before the tracker sees it; targets and
 kept frames are in the base frame. A room-mounted array's estimates are already in the base
 frame: nothing changes for it.
@@ -38,7 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from tracker.audio.head import MAX_SWEEP_RAD, HeadPoses, frame_to_base, window_motion
+from tracker.audio.head import MAX_SWEEP_RAD, HeadPoses, frame_to_base, map_grids, window_motion
 from tracker.audio.map_tracking import MapTracker
 from tracker.audio.pipeline import FrameEstimate, Pipeline
 from tracker.audio.tracking import TalkerTracker, TrackPoint
@@ -255,7 +256,7 @@ class StreamingLocator:
         if frame.fine_azimuth_rad is not None:
             lo = max(0, end - self._n_fine)
             fine = window_motion(poses, self._window(lo, end), lo / fs, end / fs)
-        return frame_to_base(frame, short, fine, self.max_head_sweep_rad)
+        return frame_to_base(frame, short, fine, self.max_head_sweep_rad, map_grids(self.pipeline))
 
     def _step(self, f: FrameEstimate) -> TrackPoint:
         """One tracker step with the arguments :meth:`Pipeline.track` gives it."""

@@ -40,10 +40,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="longer window that refines the tracked talker (s); 0 turns it off")
     locate.add_argument("--front-only", action="store_true",
                         help="search only -90°..90° azimuth of the array's frame (array on a wall "
-                             "or under a camera)")
+                             "or under a camera); for a head-mounted array, also keep the map "
+                             "tracker's talkers in -90°..90° of the base frame")
     locate.add_argument("--tracker", default="auto", choices=("auto", *TRACKERS),
-                        help="talker tracker: map (steered-response maps; srp_phat, room-mounted, "
-                             "--front-only) or kalman (window peaks); auto picks map where it applies")
+                        help="talker tracker: map (steered-response maps; srp_phat, --front-only) "
+                             "or kalman (window peaks); auto picks map where it applies")
     locate.add_argument("--json", action="store_true", help="print the JSON contract")
     locate.set_defaults(func=run_locate)
     audio.set_defaults(func=lambda args: _help(audio))
@@ -62,15 +63,20 @@ def run_locate(args: argparse.Namespace) -> int:
     """
     array = load_array(args.array)
     fs_hz, audio = read_wav(args.recording)
-    options = {"azimuth_range_rad": (-np.pi / 2, np.pi / 2)} if args.front_only else {}
-    if args.method in ("seed_rms", "gcc_phat"):
-        options = {}
+    front = (-np.pi / 2, np.pi / 2) if args.front_only else None
+    options = {"azimuth_range_rad": front} if front and args.method not in ("seed_rms", "gcc_phat") else {}
     fine_s = args.fine_window_s if args.fine_window_s and args.fine_window_s > 0 else None
-    az_range = options.get("azimuth_range_rad")
-    tracker = choose_tracker(args.method, array, az_range) if args.tracker == "auto" else args.tracker
+    # Where talkers can be in the base frame: a head-mounted array's own range turns with the head.
+    base_range = front if array.head_mounted else options.get("azimuth_range_rad")
+    tracker = choose_tracker(args.method, array, base_range) if args.tracker == "auto" else args.tracker
+    if tracker == "map" and array.head_mounted and base_range is None:
+        raise ConfigError(f"--tracker map with a head-mounted array ({array.name}) needs --front-only "
+                          "(talkers in -90°..90° of the base frame): the map tracker's grid is a "
+                          "line, not a circle")
     pipeline = Pipeline(array, fs_hz, args.method,
                         WindowSettings(args.window_s, args.hop_s, fine_s),
-                        localizer_options=options, tracker=tracker)
+                        localizer_options=options, tracker=tracker,
+                        base_azimuth_range_rad=base_range if array.head_mounted else None)
     if array.head_mounted:
         if args.encoder is None:
             raise ConfigError(f"{array.name} is head-mounted (\"mount\": \"head\"): give the "

@@ -212,4 +212,26 @@ def test_auto_takes_the_map_tracker_only_where_it_applies():
     assert choose_tracker("srp_phat", square, front) == "map"
     assert choose_tracker("srp_phat", square, None) == "kalman"  # a full circle: its map is a line
     assert choose_tracker("gcc_phat", square, front) == "kalman"
-    assert seed_pairs.head_mounted and choose_tracker("srp_phat", seed_pairs, front) == "kalman"
+    # A head-mounted array's maps are turned into the base frame: the range is the base frame's.
+    assert seed_pairs.head_mounted and choose_tracker("srp_phat", seed_pairs, front) == "map"
+    assert choose_tracker("srp_phat", seed_pairs, None) == "kalman"
+
+
+def test_a_head_mounted_array_takes_the_map_tracker_with_front_only(head_recording, capsys):
+    """``--front-only`` keeps talkers in the base frame's front half: auto picks the map tracker
+    for the head-mounted square, whose maps turn with the head (-20° -> 30°, tilted 10°)."""
+    wav, array, encoder = head_recording
+    assert main(["audio", "locate", wav, "--array", array, "--encoder", encoder, "--front-only",
+                 "--json"]) == 0
+    track = json.loads(capsys.readouterr().out)["track"]
+    assert abs(track[-1]["azimuth_deg"] - 35.0) < 3.0
+    late = [p["azimuth_deg"] for p in track if p["t"] > 2.5]
+    assert late and max(abs(a - 35.0) for a in late) < 4.0, late
+
+
+def test_the_map_tracker_on_a_head_without_front_only_is_a_one_line_error(head_recording, capsys):
+    wav, array, encoder = head_recording
+    assert main(["audio", "locate", wav, "--array", array, "--encoder", encoder,
+                 "--tracker", "map"]) == 2
+    line = _error_line(capsys)
+    assert "--front-only" in line and "head_square.json" in line

@@ -15,19 +15,23 @@ from tracker.audio import room
 from tracker.audio.array import MicArray, rotation_world_head, unit_vector
 from tracker.audio.head import (
     HeadPoses,
+    azimuths_to_base,
     direction_to_base,
     locate_head_mounted,
+    map_to_base,
     power_weights,
     read_encoder_log,
 )
 from tracker.audio.head_room import simulate_head_mounted
 from tracker.audio.pipeline import Pipeline, WindowSettings
 from tracker.audio.speech import synthetic_speech
-from tracker.errors import DataError
+from tracker.audio.stream import StreamingLocator, stream_blocks
+from tracker.errors import ConfigError, DataError
 from tracker.recording import write_measurements
+from tracker.scenarios.meeting import MeetingSettings
 from tracker.workbench.data import Measurement
 
-from .conftest import FS_HZ, angle_error_deg, example_array
+from .conftest import FS_HZ, angle_error_deg, example_array, free_field
 
 angles = st.floats(-math.pi / 2, math.pi / 2)
 tilts = st.floats(-0.7, 0.7)
@@ -60,6 +64,47 @@ def test_a_flat_array_on_a_tilted_head_finds_an_eye_level_talker(az, pan, tilt):
     assert angle_error_deg(base_az, az) < 1e-6
     if tilt == 0.0:
         assert angle_error_deg(base_az, az_h + pan) < 1e-9
+
+
+@settings(max_examples=100, deadline=None)
+@given(az=st.floats(-math.pi, math.pi), pan=angles, tilt=tilts)
+def test_head_map_cells_land_where_a_flat_arrays_estimate_would(az, pan, tilt):
+    """The vectorised cell mapping is :func:`direction_to_base`'s flat case, cell by cell."""
+    r = rotation_world_head(pan, tilt)
+    cells = np.array([az, 0.5 * az, -az])
+    expected = [direction_to_base(float(a), None, r)[0] for a in cells]
+    for got, want in zip(azimuths_to_base(cells, r), expected, strict=True):
+        assert angle_error_deg(float(got), want) < 1e-9
+
+
+def bump(grid_rad: np.ndarray, centre_rad: float) -> np.ndarray:
+    """A smooth circular peak at ``centre_rad`` (a talker's steered response)."""
+    return np.exp(4.0 * (np.cos(grid_rad - centre_rad) - 1.0))
+
+
+@settings(max_examples=100, deadline=None)
+@given(az=st.floats(-math.pi, math.pi), pan=st.floats(-math.pi, math.pi), tilt=tilts)
+def test_a_full_circle_head_map_moves_its_peak_to_the_talkers_base_azimuth(az, pan, tilt):
+    """An eye-level talker at base azimuth ``az``: her head-frame peak, turned with the head's
+    rotation, peaks at ``az`` on any base grid, across ±180° too."""
+    head_grid = np.arange(-math.pi, math.pi, math.radians(1.0))
+    az_h, _ = head_frame(az, 0.0, pan, tilt)
+    base_grid = np.linspace(az - 1.0, az + 1.0, 121)  # may run past ±180°
+    base = map_to_base(bump(head_grid, az_h), head_grid, base_grid, rotation_world_head(pan, tilt))
+    assert base.shape == base_grid.shape
+    assert angle_error_deg(float(base_grid[np.argmax(base)]), az) < 1.0
+
+
+def test_base_cells_the_head_grid_does_not_reach_hold_the_maps_minimum():
+    head_grid = np.radians(np.arange(-90.0, 90.5, 1.0))  # a front-only head-frame search
+    power = bump(head_grid, math.radians(20.0))
+    base_grid = np.radians(np.arange(-180.0, 180.0, 1.0))
+    base = map_to_base(power, head_grid, base_grid, rotation_world_head(math.radians(60.0), 0.0))
+    deg = np.degrees(base_grid)
+    assert deg[np.argmax(base)] == pytest.approx(80.0, abs=0.5)  # 20° + the pan
+    unheard = (deg < -30.0) | (deg > 150.0)  # outside 60° ± 90°
+    np.testing.assert_array_equal(base[unheard], power.min())
+    assert np.all(base[~unheard] >= power.min())
 
 
 def test_the_mean_rotation_over_a_turn_is_the_middle_of_the_turn():
@@ -178,3 +223,65 @@ def test_head_mounted_estimates_plus_encoder_angles_give_the_base_direction(
     # The head-frame estimates are elsewhere: the encoder angles did the work.
     raw = [f.azimuth_rad for f in pipeline.estimate_frames(rec.audio) if f.speech]
     assert angle_error_deg(float(np.median(raw)), true_az) > 20.0
+
+
+MAP_HEAD_T_S = np.array([0.0, 1.9, 2.0, 4.0])  # the head steps from -50° to +20° between windows
+MAP_HEAD_PAN_DEG = np.array([-50.0, -50.0, 20.0, 20.0])
+MAP_HEAD_TILT_DEG = 10.0
+
+
+def test_the_map_tracker_follows_a_talker_in_the_base_frame_while_the_head_turns():
+    """A head-mounted square on a head tilted 10°, first at pan -50°, then turned to +20°: the
+    talker (10° in the base frame) is first at +60°, then at -10° in the head frame. The map
+    tracker, fed each window's map turned into the base frame, stays on her; streamed block by
+    block it gives the same track."""
+    array = head_array("square4_65mm")
+    placement = room.centre_placement(ROOM)
+    speech = synthetic_speech(4.0, FS_HZ, seed=11)
+    position = room.position_from_direction(placement, math.radians(10.0), 2.0)
+    tilt = math.radians(MAP_HEAD_TILT_DEG)
+    rec = simulate_head_mounted(ROOM, array, placement.position_m,
+                                [room.static_talker(speech.samples, speech.active, position)],
+                                MAP_HEAD_T_S, np.radians(MAP_HEAD_PAN_DEG), np.full(4, tilt))
+    true_az = float(rec.directions(np.array([1.0]))[0, 0, 0])
+    t = np.arange(0.0, 4.005, 0.01)
+    poses = HeadPoses.from_arrays(t, np.radians(np.interp(t, MAP_HEAD_T_S, MAP_HEAD_PAN_DEG)),
+                                  np.full(t.size, tilt))
+    meeting = MeetingSettings()
+
+    def make() -> Pipeline:
+        return Pipeline(array, FS_HZ, "srp_phat", meeting.windows, tracker="map",
+                        map_tracking=meeting.map_tracking,
+                        base_azimuth_range_rad=(-math.pi / 2, math.pi / 2))
+
+    pipeline = make()
+    assert pipeline.steer_azimuth_rad.size == 360 and pipeline.map_azimuth_rad.size == 181
+    result = locate_head_mounted(pipeline, rec.audio, poses)
+    talker = [p for p in result.track if p.shot == "talker"]
+    assert len(talker) > 25
+    assert angle_error_deg(result.track[-1].azimuth_rad, true_az) < 3.0
+    after = [angle_error_deg(p.azimuth_rad, true_az) for p in talker if p.t_s > 2.5]
+    assert after and max(after) < 4.0, after
+    # Windows whose loud parts straddle the step (sweep > 10°) carry no map: the tracker skips them.
+    across = [f for f in result.frames if f.end_s - meeting.windows.window_s < 2.0 < f.end_s]
+    blank = [f.power_map is not None and bool(np.all(np.isnan(f.power_map))) for f in across]
+    assert any(blank) and blank == [f.confidence == 0.0 for f in across]
+    assert all(np.all(np.isfinite(f.power_map)) for f in result.frames
+               if f.power_map is not None and f.confidence > 0)
+    loc = StreamingLocator(make(), head_poses=poses)
+    out = stream_blocks(loc, (rec.audio[:, i : i + 800] for i in range(0, rec.audio.shape[1], 800)))
+    np.testing.assert_allclose([o.azimuth_rad for o in out],
+                               [p.azimuth_rad if p.shot != "none" else math.nan for p in result.track],
+                               atol=1e-9, equal_nan=True)
+
+
+def test_the_map_tracker_on_a_head_needs_a_base_range():
+    array = head_array("square4_65mm")
+    with pytest.raises(ConfigError, match="base_azimuth_range_rad"):
+        Pipeline(array, FS_HZ, "srp_phat", tracker="map")
+    with pytest.raises(ConfigError, match="room-mounted"):
+        Pipeline(example_array("square4_65mm"), FS_HZ, "srp_phat", tracker="map",
+                 base_azimuth_range_rad=(-1.0, 1.0))
+    with pytest.raises(DataError, match="head-frame map"):  # the batch run skipped the head angles
+        Pipeline(array, FS_HZ, "srp_phat", tracker="map",
+                 base_azimuth_range_rad=(-1.0, 1.0)).run(free_field(array, 0.3, duration_s=1.0))

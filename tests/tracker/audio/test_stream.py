@@ -142,7 +142,11 @@ HEAD_T_S = np.array([0.0, 2.0, 2.6, 5.0])  # the head turns 40° toward the talk
 HEAD_PAN_RAD = np.radians([0.0, 0.0, 40.0, 40.0])
 
 
-def head_pipeline(array: MicArray) -> Pipeline:
+def head_pipeline(array: MicArray, tracker: str = "kalman") -> Pipeline:
+    """The map tracker keeps talkers in the front half of the base frame (a camera on a wall)."""
+    if tracker == "map":
+        return Pipeline(array, FS_HZ, "srp_phat", WindowSettings(0.3, 0.1, 1.5), tracker="map",
+                        base_azimuth_range_rad=(-np.pi / 2, np.pi / 2))
     return Pipeline(array, FS_HZ, "srp_phat", WindowSettings(0.3, 0.1, 1.5))
 
 
@@ -204,18 +208,27 @@ def test_a_turning_head_keeps_the_talker_in_the_base_frame(head_array: MicArray,
     assert angle_error_deg(float(np.median(after)), talker - math.radians(40.0)) < 3.0
 
 
-@pytest.mark.parametrize("block", [160, 4000])
+@pytest.mark.parametrize(("block", "tracker"), [(160, "kalman"), (4000, "kalman"), (160, "map")],
+                         ids=["kalman-160", "kalman-4000", "map-160"])
 def test_streaming_a_head_mounted_array_matches_the_batch(head_array: MicArray,
                                                           turning_head: np.ndarray,
-                                                          block: int) -> None:
-    batch = locate_head_mounted(head_pipeline(head_array), turning_head, encoder_poses())
-    loc = StreamingLocator(head_pipeline(head_array), head_poses=encoder_poses(keep_s=3.0))
+                                                          block: int, tracker: str) -> None:
+    batch = locate_head_mounted(head_pipeline(head_array, tracker), turning_head, encoder_poses())
+    if tracker == "map":  # each window's map turned into the base frame: the track stays on her
+        talker = [p for p in batch.track if p.shot == "talker"]
+        assert len(talker) > 30 and max(
+            angle_error_deg(p.azimuth_rad, math.radians(TALKER_BASE_DEG)) for p in talker) < 3.0
+    loc = StreamingLocator(head_pipeline(head_array, tracker), head_poses=encoder_poses(keep_s=3.0))
     loc.keep_frames = True
     out = stream_blocks(loc, (turning_head[:, i : i + block]
                               for i in range(0, turning_head.shape[1], block)))
     np.testing.assert_allclose([f.azimuth_rad for f in loc.frames],
                                [f.azimuth_rad for f in batch.frames], atol=1e-9)
     assert [f.confidence for f in loc.frames] == pytest.approx([f.confidence for f in batch.frames])
+    for streamed, batched in zip(loc.frames, batch.frames, strict=True):
+        if batched.power_map is not None:
+            assert streamed.power_map is not None and streamed.power_map.shape == (181,)
+            np.testing.assert_allclose(streamed.power_map, batched.power_map, atol=1e-9)
     batch_az = np.array([p.azimuth_rad if p.shot != "none" else math.nan for p in batch.track])
     np.testing.assert_allclose([t.azimuth_rad for t in out], batch_az, atol=1e-6, equal_nan=True)
 
