@@ -8,7 +8,10 @@ Tracking*, ch. 3), every setting in :class:`MapTrackerSettings`:
 * state: azimuth × bearing rate (bank ``rates_rad_s``): rows shift by ``rate * dt``, blur by
   ``diffusion_rad_per_sqrt_s``; the log-posterior fades with ``forget_tau_s``; a share
   ``rate_mixing`` per frame is redrawn from the rate prior (``static_prior`` on "still"),
-  all of it after ``coast_s`` of silence;
+  all of it after ``coast_s`` of silence; near a talker who walks (this turn, or her track's
+  rate over ``moving_rate_rad_s``) a share ``walker_mix`` per 0.1 s is redrawn instead around her
+  track's rate (Gaussian, ``walker_rate_std_rad_s``): she keeps walking, and the still-biased
+  prior no longer holds her posterior behind her;
 * births: per speech window a share ``birth_share`` is redrawn over azimuth, uniform plus
   ``memory_share`` on seats (median of a still talker's last positions, ``memory_std_rad``,
   kept ``memory_s``): known talkers are found sooner, a seated talker's seat steadies her
@@ -57,7 +60,7 @@ class MapTrackerSettings:
     confidence_window_s: float = 10.0
     rates_rad_s: tuple[float, ...] = tuple(float(v) for v in np.deg2rad(np.arange(-12.0, 13.0, 2.0)))
     static_prior: float = 0.8
-    rate_mixing: float = 0.05
+    rate_mixing: float = 0.01
     diffusion_rad_per_sqrt_s: float = float(np.deg2rad(1.5))
     birth_share: float = 0.2
     memory_share: float = 0.5
@@ -76,15 +79,18 @@ class MapTrackerSettings:
     moving_rate_rad_s: float = float(np.deg2rad(4.0))
     moving_deadband_rad: float = float(np.deg2rad(1.0))
     lead_s: float = 0.3
-    rate_window_s: float = 1.5
+    rate_window_s: float = 1.75
     max_rate_rad_s: float = float(np.deg2rad(25.0))
+    walker_mix: float = 0.1
+    walker_rate_std_rad_s: float = float(np.deg2rad(3.0))
     wide_after_switches: int = 4
     wide_window_s: float = 20.0
     wide_release_s: float = 6.0
     wide_azimuth_rad: float | None = None
 
     def __post_init__(self) -> None:
-        fractions = ("static_prior", "rate_mixing", "birth_share", "memory_share", "switch_mass")
+        fractions = ("static_prior", "rate_mixing", "birth_share", "memory_share", "switch_mass",
+                     "walker_mix")
         for name in self.__slots__:
             value = getattr(self, name)
             if name in fractions and not 0.0 <= value <= 1.0:
@@ -222,12 +228,30 @@ class MapTracker:
         if s.forget_tau_s > 0.0:  # old evidence fades: log-posterior decays with forget_tau_s
             post = np.maximum(post, 1e-300) ** np.exp(-dt / s.forget_tau_s)
             post = post / post.sum()
+        if moving:
+            post = self._keep_walking(post, dt)
         marginal = post.sum(axis=0)
         post = (1.0 - mix) * post + mix * self._rate_prior[:, None] * marginal[None, :]
         sigma = s.diffusion_rad_per_sqrt_s * np.sqrt(dt) / self._step_rad
         if sigma > 1e-3:
             post = gaussian_filter1d(post, sigma, axis=1, mode="nearest")
         self._posterior = post / post.sum()
+
+    def _keep_walking(self, post: FloatArray, dt: float) -> FloatArray:
+        """Within two gates of a walking talker, redraw ``walker_mix`` per 0.1 s of the
+        posterior over rates around her track's rate (a constant-rate model whose rate
+        wanders): the bank's still-biased prior would otherwise hold her track behind her."""
+        s, talker, rate = self.settings, self._talker_rad, self._talker_rate_rad_s
+        if talker is None or s.walker_mix <= 0.0 or s.walker_rate_std_rad_s <= 0.0 or not (
+                self._walked or abs(rate) >= s.moving_rate_rad_s):
+            return post
+        near = np.abs(self.azimuth_rad - talker) <= 2.0 * s.gate_rad
+        own = np.exp(-0.5 * ((self._rates - rate) / s.walker_rate_std_rad_s) ** 2)
+        mix = 1.0 - (1.0 - s.walker_mix) ** (dt / 0.1)
+        post = post.copy()
+        post[:, near] = (1.0 - mix) * post[:, near] + mix * (own / own.sum())[:, None] * (
+            post[:, near].sum(axis=0)[None, :])
+        return np.asarray(post / post.sum())
 
     def _update(self, t_s: float, p: FloatArray, sharpness: float, birth: bool = True) -> None:
         s = self.settings

@@ -95,6 +95,25 @@ def test_walking_talker_is_followed_with_lead():
     assert np.median(np.abs(talker[later] - truth[later])) < 3.0
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_an_accelerating_walker_is_followed(seed):
+    # The meeting's walker: 3°/s speeding up to 9°/s over 7 s (65° to 23°); once she is framed,
+    # a reflection stronger than her in 30 % of windows, at least 25° off her path.
+    t = HOP_S * np.arange(70)
+    truth = 65.0 - (3.0 * t + 0.5 * (6.0 / 7.0) * t**2)
+    rng = np.random.default_rng(100 + seed)
+    reflections = {k: float(rng.uniform(-85.0, -2.0)) for k in range(5, t.size)
+                   if rng.random() < 0.3}
+    _, target, shots, talker = run(truth, reflections=reflections, seed=seed)
+    later = t >= 1.5
+    ahead = np.interp(t + 0.3, t, truth)  # where she is when the camera arrives
+    assert np.median(np.abs(talker[later] - truth[later])) < 3.0
+    assert np.max(np.abs(talker[later] - truth[later])) < 8.0
+    # The camera: where she will be; the slow start (3°/s, below moving_rate_rad_s) costs most.
+    assert np.mean(np.abs(target[later] - ahead[later]) < 5.0) >= 0.7
+    assert switches(target, shots) == 0
+
+
 def test_turn_change_switches_once_and_quickly():
     truth = np.concatenate([np.full(50, 30.0), np.full(5, np.nan), np.full(50, -40.0)])
     speech = ~np.isnan(truth)
@@ -203,6 +222,8 @@ def test_settings_and_inputs_are_validated():
         MapTrackerSettings(min_hold_s=-1.0)
     with pytest.raises(ConfigError, match="switch_mass"):
         MapTrackerSettings(switch_mass=1.5)
+    with pytest.raises(ConfigError, match="walker_mix"):
+        MapTrackerSettings(walker_mix=1.5)
     with pytest.raises(ConfigError, match="rates_rad_s"):
         MapTrackerSettings(rates_rad_s=(0.1, 0.2))
     with pytest.raises(ConfigError, match="evenly spaced"):
