@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
-from tracker.audio.tracking import TrackPoint
+from tracker.audio.tracking import TrackPoint, back_and_forth_midpoint
 from tracker.errors import ConfigError, DataError
 
 FloatArray = NDArray[np.float64]
@@ -387,10 +387,8 @@ class MapTracker:
         self._switches = [sw for sw in self._switches if t_s - sw[0] <= s.wide_window_s]
         if len(self._switches) < s.wide_after_switches:
             return
-        a, b = self._switches[-1][1], self._switches[-1][2]
-        ends = [x for sw in self._switches for x in sw[1:]]
-        if all(min(abs(x - a), abs(x - b)) <= s.gate_rad for x in ends):  # a map spans < 2π
-            mid = float(np.angle(np.exp(1j * a) + np.exp(1j * b)))
+        mid = back_and_forth_midpoint(self._switches, s.gate_rad)
+        if mid is not None:
             self._wide_rad = s.wide_azimuth_rad if s.wide_azimuth_rad is not None else mid
 
     def _target(self, t_s: float) -> TrackPoint:

@@ -54,6 +54,18 @@ def _wrap(angle_rad: float) -> float:
     return float(-((-angle_rad + np.pi) % (2 * np.pi) - np.pi))
 
 
+def back_and_forth_midpoint(switches: list[tuple[float, float, float]], near_rad: float
+                            ) -> float | None:
+    """The wide shot's direction, or None: the midpoint of the last switch's two ends when
+    every switch in ``switches`` (time, from, to; rad) went between those two directions
+    (each end within ``near_rad`` of one of them)."""
+    a, b = switches[-1][1], switches[-1][2]
+    ends = [x for sw in switches for x in sw[1:]]
+    if all(min(abs(_wrap(x - a)), abs(_wrap(x - b))) <= near_rad for x in ends):
+        return float(np.angle(np.exp(1j * a) + np.exp(1j * b)))
+    return None
+
+
 @dataclass(frozen=True, slots=True)
 class TrackerSettings:
     """Talker tracker and switching policy; every field adjustable, defaults for a meeting room."""
@@ -394,15 +406,8 @@ class TalkerTracker:
         self._switches = recent
         if len(recent) < s.wide_after_switches:
             return
-        ends_a = [sw[1] for sw in recent]
-        ends_b = [sw[2] for sw in recent]
-        a, b = recent[-1][1], recent[-1][2]
-        near = s.gate_rad
-        alternating = all(
-            min(abs(_wrap(x - a)), abs(_wrap(x - b))) <= near for x in ends_a + ends_b
-        )
-        if alternating:
-            mid = float(np.angle(np.exp(1j * a) + np.exp(1j * b)))
+        mid = back_and_forth_midpoint(recent, s.gate_rad)
+        if mid is not None:
             self._wide_rad = s.wide_azimuth_rad if s.wide_azimuth_rad is not None else mid
 
     def _target(self, t_s: float) -> TrackPoint:
