@@ -15,6 +15,7 @@ import pytest
 from tracker.plant.effects import OPTIONAL_EFFECTS
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose import Diagnosis, diagnose
+from tracker.workbench.effect_search import SCREENED
 
 from .hidden_cases import hidden_case
 
@@ -27,18 +28,7 @@ REL_TOL = {"backlash.width": 0.25, "compliance.damping": 0.2}
 FACTOR_TOL = {"stiction.velocity": 5.0}
 ANGLE_TOL_RAD = 0.1
 
-SINGLE = [
-    "offset",
-    "coulomb_asymmetry",
-    "viscous_asymmetry",
-    "gravity",
-    "ripple",
-    "stiction",
-    "delay",
-    "saturation",
-    "backlash",
-    "compliance",
-]
+SINGLE = list(SCREENED)  # every effect the diagnosis screens, hidden alone
 SEEDS = {e: 101 + i for i, e in enumerate(SINGLE)}
 
 
