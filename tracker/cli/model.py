@@ -224,7 +224,7 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
     from tracker.workbench.diagnose import Candidate, Diagnosis, diagnose
 
     def card(i: int, c: Candidate, width: int = 100) -> list[str]:
-        mark = "SIGNIFICANT" if c.significant else "not significant"
+        mark = "SIGNIFICANT" if c.significant else (c.finding or "not significant")
         out = [f"{i}. {c.effect}  —  {mark}; fit with it {c.fit_percent:.3f} %"]
         for k, v in c.params.items():
             se = c.stderr.get(k)

@@ -9,9 +9,14 @@ Stribeck term when ``stiction`` is on. With ``backlash`` or ``compliance`` the i
 into a motor side (friction, offset, ripple, the encoder) and a load side (gravity, external
 disturbance) joined by a belt spring with a dead band.
 
-Integration is semi-implicit (symplectic) Euler with sub-steps sized to the belt resonance;
-the command is zero-order-held per sample and the delay is applied exactly by averaging the
-delayed held command over each sub-step, so results vary smoothly with ``delay.seconds``.
+Integration is leapfrog (staggered semi-implicit Euler) with sub-steps sized to the belt
+resonance: angles live at the sample instants and velocities half a sub-step earlier, so the
+velocity kick over [t − h/2, t + h/2] takes the command averaged over that interval. With the
+command zero-order-held per sample this is exact for the rigid axis between friction events,
+whatever the sample rate: the twin answers a command at the same instant a continuous-time
+axis would (a plain semi-implicit Euler step answers half a sample early, which a fit of real
+data reads as a half-sample delay). The delay is applied the same way, exactly, by averaging
+the delayed held command, so results vary smoothly with ``delay.seconds``.
 
 Everything hot is compiled with numba: the closed-loop simulator in ``tracker.control`` calls
 :func:`advance` and :func:`encoder_rad` directly from its own compiled loop.
@@ -124,17 +129,27 @@ def _applied_command(u: FloatArray, t0: float, h: float, dt: float, P: FloatArra
 
 
 @njit(cache=True, inline="always")
+def _from_rest(net: float, J: float, h: float, P: FloatArray) -> float:
+    """Velocity after ``h`` from rest under ``net`` torque: Karnopp stick or break-away."""
+    fc = P[I_FCP] if net > 0.0 else P[I_FCN]
+    thr = fc
+    if P[I_STIC] > 0.0 and P[I_FS] > thr:
+        thr = P[I_FS]
+    if abs(net) <= thr:
+        return 0.0
+    s = 1.0 if net > 0.0 else -1.0
+    return float(h * (net - s * thr) / J)
+
+
+@njit(cache=True, inline="always")
 def _friction_step(omega: float, net: float, J: float, h: float, P: FloatArray) -> float:
-    """Advance a velocity by h under ``net`` non-friction torque and Karnopp/Stribeck friction."""
+    """Advance a velocity by h under ``net`` non-friction torque and Karnopp/Stribeck friction.
+
+    When friction and the torque bring the axis to rest inside the step, the rest of the step
+    is spent at rest or breaking away again (a reversal takes no more time than it should).
+    """
     if omega == 0.0:
-        fc = P[I_FCP] if net > 0.0 else P[I_FCN]
-        thr = fc
-        if P[I_STIC] > 0.0 and P[I_FS] > thr:
-            thr = P[I_FS]
-        if abs(net) <= thr:
-            return 0.0
-        s = 1.0 if net > 0.0 else -1.0
-        return float(h * (net - s * thr) / J)
+        return _from_rest(net, J, h, P)
     if omega > 0.0:
         fc, b, s = P[I_FCP], P[I_BP], 1.0
     else:
@@ -143,9 +158,12 @@ def _friction_step(omega: float, net: float, J: float, h: float, P: FloatArray) 
     if P[I_STIC] > 0.0:
         x = omega / P[I_VS]
         fr = fc + (P[I_FS] - fc) * math.exp(-x * x)
-    new = omega + h * (net - s * fr - b * omega) / J
-    if new * omega < 0.0:
-        return 0.0  # friction stops motion; it cannot reverse it
+    acc = (net - s * fr - b * omega) / J
+    new = omega + h * acc
+    if new * omega <= 0.0:
+        # At rest after tau = −ω/acc (0 < tau ≤ h); the remaining time from rest.
+        tau = -omega / acc
+        return _from_rest(net, J, h - tau, P)
     return float(new)
 
 
@@ -158,20 +176,26 @@ def advance(x: FloatArray, P: FloatArray, u: FloatArray, k: int, dt: float, dist
     """
     n_sub = int(P[I_NSUB])
     h = dt / n_sub
-    no_delay = P[I_DELAY] == 0.0
+    half_h = 0.5 * h
     for i in range(n_sub):
-        if no_delay:
-            tau_m = P[I_K] * _held_command(u, k, P[I_ULIM])
-        else:
-            tau_m = P[I_K] * _applied_command(u, k * dt + i * h, h, dt, P)
+        # Leapfrog: the velocity lives at half steps, so its kick spans [t − h/2, t + h/2].
+        # The command may step at t (a sample instant): each half takes its own held command,
+        # and friction acts on each half (Karnopp is not linear in the torque).
+        t = k * dt + i * h
+        u_a = _applied_command(u, t - half_h, half_h, dt, P)
+        u_b = _applied_command(u, t, half_h, dt, P)
         if P[I_TWO] == 0.0:
             th = x[0]
-            net = tau_m - P[I_OFFSET] + dist_nm
+            rest = -P[I_OFFSET] + dist_nm
             if P[I_RA] != 0.0:
-                net -= P[I_RA] * math.sin(P[I_RN] * th + P[I_RPH])
+                rest -= P[I_RA] * math.sin(P[I_RN] * th + P[I_RPH])
             if P[I_GT] != 0.0:
-                net -= P[I_GT] * math.sin(th + P[I_GPH])
-            x[1] = _friction_step(x[1], net, P[I_JM], h, P)
+                rest -= P[I_GT] * math.sin(th + P[I_GPH])
+            if u_a == u_b:
+                x[1] = _friction_step(x[1], P[I_K] * u_a + rest, P[I_JM], h, P)
+            else:
+                x[1] = _friction_step(x[1], P[I_K] * u_a + rest, P[I_JM], half_h, P)
+                x[1] = _friction_step(x[1], P[I_K] * u_b + rest, P[I_JM], half_h, P)
             x[0] += h * x[1]
             x[2] = x[0]
             x[3] = x[1]
@@ -187,8 +211,12 @@ def advance(x: FloatArray, P: FloatArray, u: FloatArray, k: int, dt: float, dist
             tau_c = P[I_CK] * dz
             if dz != 0.0:
                 tau_c += P[I_CC] * (x[1] - x[3])
-            net_m = tau_m - P[I_OFFSET] - P[I_RA] * math.sin(P[I_RN] * x[0] + P[I_RPH]) - tau_c
-            x[1] = _friction_step(x[1], net_m, P[I_JM], h, P)
+            rest = -P[I_OFFSET] - P[I_RA] * math.sin(P[I_RN] * x[0] + P[I_RPH]) - tau_c
+            if u_a == u_b:
+                x[1] = _friction_step(x[1], P[I_K] * u_a + rest, P[I_JM], h, P)
+            else:
+                x[1] = _friction_step(x[1], P[I_K] * u_a + rest, P[I_JM], half_h, P)
+                x[1] = _friction_step(x[1], P[I_K] * u_b + rest, P[I_JM], half_h, P)
             x[3] += h * (tau_c - P[I_GT] * math.sin(x[2] + P[I_GPH]) + dist_nm) / P[I_JL]
             x[0] += h * x[1]
             x[2] += h * x[3]

@@ -32,6 +32,7 @@ from tracker.workbench.idim import prepare_signals
 from tracker.workbench.judgement import (
     TORQUE_EFFECTS,
     Judged,
+    finding,
     judge_candidate,
     rank,
     reconsider_backlash,
@@ -64,6 +65,7 @@ class Candidate:
     experiment: str | None = None
     screen_gain: float = 0.0
     kstep_gain: float = 0.0
+    finding: str | None = None  # "computational latency", "significant but small", or None
     model: AxisModel | None = field(default=None, repr=False, compare=False)  # the model with it added
 
     def to_dict(self) -> dict[str, object]:
@@ -78,6 +80,7 @@ class Candidate:
             "experiment": self.experiment,
             "screen_gain": self.screen_gain,
             "kstep_gain": self.kstep_gain,
+            "finding": self.finding,
         }
 
 
@@ -205,6 +208,7 @@ def _candidate(r: Judged, ctx: EvidenceContext, significant: list[str]) -> Candi
         experiment=experiment_for(r.effect),
         screen_gain=r.screen.gain_cv,
         kstep_gain=r.cmp.improvement,
+        finding=finding(r, ctx),
         model=r.model,
     )
 

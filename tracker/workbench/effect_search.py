@@ -17,6 +17,7 @@ from tracker.plant.model import AxisModel
 from tracker.units import AMPLIFIER_LIMIT_V
 from tracker.workbench.idim import Regression
 from tracker.workbench.screening import Screen, Structure, TorqueDesign, screen
+from tracker.workbench.search import whole_is_enough
 
 FloatArray = NDArray[np.float64]
 
@@ -79,16 +80,31 @@ def _refine_1d(
     return st, design.fit(st, n_eff), best_v
 
 
-def ripple_periodogram(residual: FloatArray, theta_rad: FloatArray, n_max: int) -> FloatArray:
-    """Power of the residual at n = 0..n_max cycles per revolution of θ. Shape (n_max + 1,)."""
-    z = np.exp(1j * theta_rad)
-    zn = np.ones_like(z)
+def ripple_periodogram(residual: FloatArray, theta_rad: FloatArray, cycles: FloatArray) -> FloatArray:
+    """Power of the residual at each (real, not only whole) number of ``cycles`` per revolution
+    of θ. Returns shape (cycles.size,)."""
     r = residual - residual.mean()
-    power = np.zeros(n_max + 1)
-    for n in range(1, n_max + 1):
-        zn = zn * z
-        power[n] = abs(np.dot(r, zn)) ** 2 / r.size
+    power = np.empty(cycles.size)
+    chunk = max(1, 2_000_000 // max(1, r.size))
+    for i in range(0, cycles.size, chunk):
+        n = cycles[i : i + chunk]
+        phase = np.outer(n, theta_rad)
+        c, s = np.cos(phase) @ r, np.sin(phase) @ r
+        power[i : i + chunk] = (c * c + s * s) / r.size
     return power
+
+
+def _ripple_peaks(power: FloatArray, cycles: FloatArray, width: float, count: int) -> list[float]:
+    """The ``count`` highest local peaks of a periodogram, at least ``width`` apart."""
+    order = np.argsort(power)[::-1]
+    peaks: list[float] = []
+    for i in order:
+        n = float(cycles[i])
+        if all(abs(n - p) >= width for p in peaks):
+            peaks.append(n)
+        if len(peaks) == count:
+            break
+    return peaks
 
 
 def screen_missing_effects(
@@ -111,23 +127,7 @@ def screen_missing_effects(
             st = base.plus(effect)
             out[effect] = screen(effect, design, model, base, base_reg, st, 2 if effect == "gravity" else 1)
         elif effect == "ripple":
-            th = sig.theta_rad[sig.use]
-            span = float(np.ptp(th))
-            speed = float(np.median(np.abs(sig.omega_rad_s[sig.use]))) or 1.0
-            n_max = int(min(RIPPLE_MAX_CYCLES, max(4, 2 * math.pi * sig.cutoff_hz / speed)))
-            power = ripple_periodogram(base_reg.residual, th, n_max)
-            power[:2] = 0.0  # n = 1 is gravity's shape
-            top = np.argsort(power)[::-1][:3]
-            structs = [base.plus("ripple", **{"ripple.cycles_per_rev": float(n)}) for n in top]
-            st, reg, _ = _best(design, structs, ne)
-            n_best = st.settings["ripple.cycles_per_rev"]
-            med = float(np.median(power[2:])) or 1e-30
-            detail = {
-                "cycles_per_rev": n_best,
-                "peak_ratio": float(power[int(n_best)] / med),
-                "span_rad": span,
-            }
-            out[effect] = screen(effect, design, model, base, base_reg, st, 3, detail, reg)
+            out[effect] = _screen_ripple(design, model, base, base_reg)
         elif effect == "stiction":
             grid = np.geomspace(0.005, 0.5, 10)
             st, reg, vs = _refine_1d(
@@ -164,6 +164,45 @@ def screen_missing_effects(
         elif effect == "compliance":
             out[effect] = _screen_compliance(design, model, base, base_reg)
     return out
+
+
+def _screen_ripple(design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression) -> Screen:
+    """Ripple: cycles per revolution searched on a continuous scale (cogging seen through a
+    gear is rarely a whole number per load revolution), from the residual torque's periodogram
+    against θ, then refined on the regression itself."""
+    sig = design.sig
+    ne = base_reg.n_eff
+    th = sig.theta_rad[sig.use]
+    span = max(float(np.ptp(th)), 1e-3)
+    # The low-pass keeps a ripple only while n·|ω| stays below the cut-off: the slow quarter
+    # of the motion sets how many cycles per revolution can be seen at all.
+    slow = float(np.percentile(np.abs(sig.omega_rad_s[sig.use]), 25)) or 1.0
+    n_max = float(min(RIPPLE_MAX_CYCLES, max(4.0, 2 * math.pi * sig.cutoff_hz / slow)))
+    resolution = 2 * math.pi / span  # periodogram peak width in cycles per revolution
+    cycles = np.arange(2.0, n_max + 1e-9, min(0.25, resolution / 8.0))
+    power = ripple_periodogram(base_reg.residual, th, cycles)
+    best: tuple[float, Structure, Regression, float] | None = None
+    for n0 in _ripple_peaks(power, cycles, resolution, 3):
+        local = np.linspace(max(1.5, n0 - 0.5 * resolution), n0 + 0.5 * resolution, 5)
+        st, reg, n = _refine_1d(
+            design, lambda v: base.plus("ripple", **{"ripple.cycles_per_rev": v}), local, ne, log=False
+        )
+        if best is None or reg.sse < best[0]:
+            best = (reg.sse, st, reg, n)
+    assert best is not None
+    sse_best, st, reg, n_best = best
+    whole = float(max(2, round(n_best)))
+    st_whole = base.plus("ripple", **{"ripple.cycles_per_rev": whole})
+    reg_whole = design.fit(st_whole, ne)
+    if whole_is_enough(reg_whole.sse, sse_best, ne):
+        st, reg, n_best = st_whole, reg_whole, whole
+    med = float(np.median(power)) or 1e-30
+    detail = {
+        "cycles_per_rev": n_best,
+        "peak_ratio": float(ripple_periodogram(base_reg.residual, th, np.array([n_best]))[0] / med),
+        "span_rad": span,
+    }
+    return screen("ripple", design, model, base, base_reg, st, 3, detail, reg)
 
 
 def _screen_compliance(

@@ -156,7 +156,7 @@ def describe(
         )
     if effect == "ripple":
         return (
-            f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.0f} cycles per revolution "
+            f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.2f} cycles per revolution "
             f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
             f"{p['ripple.amplitude']:.3g} N·m" + tail
         )
@@ -180,11 +180,19 @@ def describe(
         extra = ""
         if ba is not None and math.isfinite(ba.delay_se):
             extra = f"; break-away lags the command by {1e3 * ba.delay_s:.1f} ± {1e3 * ba.delay_se:.1f} ms"
-        if p["delay.seconds"] < 0.5 * sig.dt_s:
-            extra += " (under half a sample period: the sampling convention, not a drive delay)"
+        samples = p["delay.seconds"] / sig.dt_s
+        if samples < 0.5:
+            meaning = " (under half a sample period: the sampling convention, not a drive delay)"
+        elif samples < 1.5:
+            meaning = (
+                " (one sample: the command logged at row i acts from row i + 1 — the controller's "
+                "computational latency or the logging order, not a delay of the drive)"
+            )
+        else:
+            meaning = ""
         return (
-            f"input–residual alignment is best with the command delayed by "
-            f"{1e3 * p['delay.seconds']:.1f} ms{extra}" + tail
+            f"input–residual alignment is best with the command delayed by {1e3 * p['delay.seconds']:.2f} ms "
+            f"= {samples:.2f} samples of {1e3 * sig.dt_s:.3g} ms{meaning}{extra}" + tail
         )
     if effect == "saturation":
         lim = p["saturation.limit"]
@@ -220,6 +228,16 @@ def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: st
     sig_names = [c.effect for c in candidates if c.significant]
     by = {c.effect: c for c in candidates}
     notes: list[str] = []
+    latency = by.get("delay")
+    if latency is not None and latency.finding == "computational latency":
+        d = latency.params.get("delay.seconds", 0.0)
+        notes.append(
+            f"the command acts one sample after the row it is logged on ({1e3 * d:.2f} ms = "
+            f"{d / ctx.sig.dt_s:.2f} samples): the controller's computational latency (its output is "
+            "applied at the next tick), not a delay of the drive. Predictions need it: add it with "
+            f"`--effects delay --set delay.seconds={d:.3g}`, or log each command on the row where it "
+            "is applied"
+        )
     if verdict is None:
         notes.append(
             "no effect explains a significant share of the residual: the model structure is "

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
 from tracker.workbench.evidence import EvidenceContext
 from tracker.workbench.kstep import Comparison, HeldOutSearch, KStepJudge, KStepScore, held_out_search, refine
@@ -29,7 +30,9 @@ REFINE_TOP = 2
 MIN_BACKLASH_GAIN = 0.15
 MIN_BACKLASH_SIGNIFICANT_COUNTS = 8
 MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but not explode
-MIN_DELAY_SAMPLES = 0.5
+MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no delay at all)
+MIN_DRIVE_DELAY_SAMPLES = 1.5  # below: one controller tick of computational latency
+MAX_RESONANT_DAMPING = 1.0 / 2.0**0.5  # |H| of a second-order system peaks only below this
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 PARSIMONY_PER_PARAM = 0.02
 OVERWHELMING_P = 1e-10
@@ -58,6 +61,7 @@ class Judged:
     significant: bool
     screen_ok: bool
     stderr: dict[str, float] = field(default_factory=dict)
+    passed: bool = False  # passed the gates of size and agreement (before the physics check)
 
     def rank_key(self) -> tuple[bool, float]:
         """Significant first, then by the mean of held-out screening gain and k-step gain, less a
@@ -204,8 +208,9 @@ def judge_candidate(
         significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_TWO_MASS and _kstep_ok(
             effect, cmp
         )
+    passed = significant
     significant = significant and _physical(effect, cand, ctx)
-    return Judged(effect, scr, cand, score, cmp, significant, screen_ok)
+    return Judged(effect, scr, cand, score, cmp, significant, screen_ok, passed=passed)
 
 
 def refine_leaders(
@@ -228,7 +233,8 @@ def refine_leaders(
         score = judge.score(refined)
         if score.sse < r.score.sse:
             r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
-            r.significant = _kstep_ok(r.effect, r.cmp) and _physical(r.effect, refined, ctx)
+            r.passed = _kstep_ok(r.effect, r.cmp)
+            r.significant = r.passed and _physical(r.effect, refined, ctx)
 
 
 def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:
@@ -271,15 +277,47 @@ def _stiction_search(
 
 
 def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
-    """False for values that are no physical effect: a delay below half a sample period is the
-    sampling convention (when in the period the encoder is read), not a transport delay; a clip
-    level the command never reaches clips nothing (its gain came from refitting the rest)."""
+    """False for values that are no physical effect.
+
+    A delay under half a sample period is the sampling convention (when in the period the
+    encoder is read); a delay of about one sample is the controller's own computational latency
+    (the command logged at row i applied from row i + 1), a property of the log, not of the
+    drive — reported apart (:func:`finding`). A clip level the command never reaches clips
+    nothing (its gain came from refitting the rest). A "belt" with a damping ratio of 1/√2 or
+    more has no resonance peak, and one at or above a quarter of the sampling rate or the
+    catalogue's bound cannot be resolved: both are the model's extra load state fitting noise.
+    """
     if effect == "delay":
-        return model.params["delay.seconds"] >= MIN_DELAY_SAMPLES * ctx.sig.dt_s
+        return model.params["delay.seconds"] >= MIN_DRIVE_DELAY_SAMPLES * ctx.sig.dt_s
     if effect == "saturation":
         clipped = float(np.mean(np.abs(ctx.sig.u_v) > model.params["saturation.limit"]))
         return clipped >= MIN_CLIPPED_SHARE
+    if effect == "compliance":
+        f_max = min(0.25 / ctx.sig.dt_s, 0.95 * get_param("compliance.frequency").upper)
+        return (
+            model.params["compliance.damping"] < MAX_RESONANT_DAMPING
+            and model.params["compliance.frequency"] < f_max
+        )
     return True
+
+
+def finding(row: Judged, ctx: EvidenceContext) -> str | None:
+    """What a candidate that is not the verdict still tells: a one-sample computational latency,
+    or an effect that is detectable but too small to matter. None when nothing."""
+    if row.significant:
+        return None
+    if row.effect == "delay" and row.passed:
+        samples = row.model.params["delay.seconds"] / ctx.sig.dt_s
+        if MIN_DELAY_SAMPLES <= samples < MIN_DRIVE_DELAY_SAMPLES:
+            return "computational latency"
+    if row.passed and _physical(row.effect, row.model, ctx):
+        return None
+    scr = row.screen
+    detectable = scr.p_value <= MAX_SCREEN_P and scr.folds_improve and scr.gain_cv > 0.0
+    agrees = row.cmp.improvement > 0.0 and row.cmp.robust_improvement > 0.0
+    if detectable and agrees and _physical(row.effect, row.model, ctx):
+        return "significant but small"
+    return None
 
 
 def _kstep_ok(effect: str, cmp: Comparison, screen_p: float = 1.0) -> bool:
@@ -319,6 +357,7 @@ def _backlash_significant(
 __all__ = [
     "TORQUE_EFFECTS",
     "Judged",
+    "finding",
     "judge_candidate",
     "rank",
     "reconsider_backlash",

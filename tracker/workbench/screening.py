@@ -121,10 +121,16 @@ class TorqueDesign:
         return self._cache[key]
 
     def torque(self, delay_s: float, limit_v: float) -> FloatArray:
-        """K·L[sat(u)](t − d), full rate."""
+        """K·L[sat(u)](t − d − h/2), full rate.
+
+        The command is held over each sample period [t_k, t_k + h), so the torque centred on
+        t_k (where the centred derivatives put α) is the mean of u_{k−1} and u_k: the samples
+        are half a period late against the torque they apply (the logging convention, not a
+        delay of the drive).
+        """
         lim = min(limit_v, AMPLIFIER_LIMIT_V)
         u = self._col(("u", round(lim, 6)), lambda: np.clip(self.sig.u_v, -lim, lim))
-        return self.gain * delayed(self.sig.t_s, u, delay_s)
+        return self.gain * delayed(self.sig.t_s, u, delay_s + 0.5 * self.sig.dt_s)
 
     def load_alpha(self, structure: Structure) -> FloatArray | None:
         """Load-side acceleration for a two-mass structure, else None."""

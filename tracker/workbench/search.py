@@ -22,12 +22,14 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import stats
 
 from tracker.errors import ConfigError
 from tracker.plant.effects import BASE_EFFECTS, get_param
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.data import Measurement
+from tracker.workbench.idim import effective_samples
 from tracker.workbench.states import StateEstimate, encoder_step_rad, with_load_observer
 from tracker.workbench.torques import fit_inverse_dynamics, moving_mask, replace_params, residual_torque_nm
 
@@ -108,10 +110,42 @@ def find_ripple_cycles(meas: Measurement, est: StateEstimate, model: AxisModel) 
     fitted = replace_params(base, fit_inverse_dynamics(meas, est, base, free).params)
     mov = moving_mask(est.omega_rad_s)
     tq = residual_torque_nm(meas, est, fitted)[mov]
-    ns, amps = ripple_spectrum(est.theta_rad[mov], tq)
+    th = est.theta_rad[mov]
+    ns, amps = ripple_spectrum(th, tq)
     if ns.size == 0:
         return float(model.params["ripple.cycles_per_rev"])
-    return float(ns[int(np.argmax(amps))])
+    return _refine_cycles(th, tq, float(ns[int(np.argmax(amps))]))
+
+
+def _refine_cycles(theta_rad: FloatArray, torque_nm: FloatArray, n0: float) -> float:
+    """The real number of cycles per revolution near ``n0`` whose sin/cos fit explains most:
+    cogging seen through a gear (e.g. 2 × 17.01 per load revolution) is rarely whole."""
+    th, tq = theta_rad, torque_nm - float(np.mean(torque_nm))
+    if th.size > MAX_RIPPLE_SAMPLES:
+        pick = np.linspace(0, th.size - 1, MAX_RIPPLE_SAMPLES).astype(np.int64)
+        th, tq = th[pick], tq[pick]
+    grid = np.arange(max(1.0, n0 - 1.0), n0 + 1.0 + 1e-9, 0.02)
+
+    def sse(n: float) -> float:
+        a = np.column_stack([np.sin(n * th), np.cos(n * th), np.ones_like(th)])
+        coef, *_ = np.linalg.lstsq(a, tq, rcond=None)
+        r = tq - a @ coef
+        return float(r @ r)
+
+    sses = np.array([sse(float(n)) for n in grid])
+    best = float(grid[int(np.argmin(sses))])
+    whole = float(max(1, round(best)))
+    return whole if whole_is_enough(sse(whole), float(sses.min()), effective_samples(tq)) else best
+
+
+def whole_is_enough(sse_whole: float, sse_best: float, n_eff: float) -> bool:
+    """Whether a whole number of cycles per revolution explains the data as well as the best
+    real number, within chance (F-test at 1 % for the one extra degree of freedom on ``n_eff``
+    effectively independent samples): the simpler story — a ripple of the load itself — wins."""
+    if sse_best <= 0.0:
+        return sse_whole <= 0.0
+    f = (sse_whole - sse_best) / (sse_best / max(1.0, n_eff - 4.0))
+    return bool(f < stats.f.ppf(0.99, 1, max(1.0, n_eff - 4.0)))
 
 
 def _cutoff_hz(model: AxisModel) -> float | None:
