@@ -8,8 +8,10 @@ where θ̂ is the last reported angle advanced by the commanded speed over its a
 target's own rate. Inside a dead band of ``max(1 count, v₁·period)`` (v₁ the slowest code's
 speed) around a target that does not move, the axis stops. Toward the target, and toward a
 soft limit, the speed is capped so that, after the dead time T = latency + period and braking
-at the head's acceleration a, it can stop there: v ≤ a·(−T + sqrt(T² + 2·room/a)) (plus |v_ff|
-toward a moving target); without the first cap a 30° step overshot by 15°. The speed is then
+at half the head's acceleration a (slack for jitter and the head's own lag), it can stop
+there: v ≤ a'·(−T + sqrt(T² + 2·room/a')), a' = a/2 (plus |v_ff| toward a moving target);
+without the first cap a 30° step overshot by 15°, and braking at the full a ran 0.08° past a
+limit on the emulator. The speed is then
 rounded *down* to the speed table (never faster than asked), at least code 1 outside the
 dead band when the limit allows it.
 """
@@ -33,6 +35,7 @@ class AxisDrive:
 
 
 STOP = AxisDrive(1, 0, 0.0)
+BRAKE_FRACTION = 0.5  # of the profile's acceleration, counted on for stopping
 
 
 def dead_band_rad(profile: CameraProfile, axis: str, period_s: float) -> float:
@@ -65,6 +68,7 @@ def axis_drive(
     dead = dead_band_rad(profile, axis, period_s)
     slowest = profile.code_speed_rad_s(axis, 1)
     dead_time = latency_s + period_s
+    brake = BRAKE_FRACTION * profile.accel_rad_s2
     braking = math.inf
     if target_rad is None:
         v = rate_rad_s
@@ -76,10 +80,10 @@ def axis_drive(
             return STOP
         v = rate_rad_s + e / max(2.0 * period_s, 0.1)
         if v * e > 0:
-            braking = abs(rate_rad_s) + limit_speed_rad_s(abs(e) - 0.5 * dead, profile.accel_rad_s2, dead_time)
+            braking = abs(rate_rad_s) + limit_speed_rad_s(abs(e) - 0.5 * dead, brake, dead_time)
     lo, hi = limits_rad
     room = hi - position_rad if v > 0 else position_rad - lo
-    allowed = limit_speed_rad_s(room - 0.5 * dead, profile.accel_rad_s2, dead_time)
+    allowed = limit_speed_rad_s(room - 0.5 * dead, brake, dead_time)
     speed = min(abs(v), allowed, braking, profile.max_speed_rad_s(axis))
     if speed < slowest:
         if allowed < slowest or (target_rad is None and speed < 0.5 * slowest):

@@ -87,6 +87,10 @@ class ViscaCamera:
         self._rate: dict[str, float] = {a: 0.0 for a in AXES}
         self._ff: dict[str, tuple[float, float] | None] = {a: None for a in AXES}  # (target, t) last cycle
         self._drive: dict[str, AxisDrive] = {a: STOP for a in AXES}
+        # The head's speed as modelled: the commanded table speed reached at the profile's
+        # acceleration (extrapolating with the commanded speed alone ran 0.2 deg past a limit).
+        self._speed: dict[str, float] = {a: 0.0 for a in AXES}
+        self._speed_t = 0.0
         self._sent_drive: tuple[AxisDrive, AxisDrive] | None = None
         self._sent_abs: tuple[float, float] | None = None
         self._stop_repeats = 0
@@ -164,7 +168,7 @@ class ViscaCamera:
     def read_encoder(self, axis: str) -> float:
         self._check_axis(axis)
         age = min(time.monotonic() - self._position_t, 2 * self._period) if self._have_position else 0.0
-        return self._position[axis] + self._drive[axis].speed_rad_s * age
+        return self._position[axis] + self._speed[axis] * age
 
     def faults(self) -> tuple[str, ...]:
         return tuple(self._faults)
@@ -315,6 +319,8 @@ class ViscaCamera:
             backoff = BACKOFF_START_S
             self.connects += 1
             self._forget_targets()  # never move on its own after a (re)connection
+            self._drive = {a: STOP for a in AXES}
+            self._speed = {a: 0.0 for a in AXES}
             self._state = "connected"
             self._last_answer = time.monotonic()
             lost = await self._cycle_until_lost()
@@ -375,6 +381,12 @@ class ViscaCamera:
             self._sent_drive = self._sent_abs = None  # send again next cycle
 
     def _steering_packet(self) -> bytes | None:
+        now = time.monotonic()
+        step = self.profile.accel_rad_s2 * min(now - self._speed_t, 2 * self._period)
+        self._speed_t = now
+        for axis in AXES:
+            dv = self._drive[axis].speed_rad_s - self._speed[axis]
+            self._speed[axis] += max(-step, min(dv, step))
         if not (self._enabled and self._have_position):
             self._drive = {a: STOP for a in AXES}
             if self._stop_repeats > 0:
@@ -382,8 +394,8 @@ class ViscaCamera:
                 return vp.pan_tilt_stop()
             return None
         if self.steering == "position" and all(self._target[a] is not None for a in AXES):
+            self._drive = {a: STOP for a in AXES}
             return self._position_packet()
-        now = time.monotonic()
         latency = (self._link.stats.rtt_percentile_ms(50) or 0.0) * 1e-3
         for axis in AXES:
             target = self._target[axis]
