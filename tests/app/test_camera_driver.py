@@ -65,7 +65,8 @@ def test_service_reports_the_camera_and_follows_pointing(tmp_path: Path, camera:
             assert r.status_code == 200, r.text
             return r.json()
 
-        s = poll(lambda: (st := status())["driver"]["state"] == "connected" and st["mode"] == "hold" and st, 5.0)
+        s = poll(lambda: (st := status())["driver"]["state"] == "connected"
+                 and st["mode"] == "hold" and st, 5.0)
         assert s, f"camera not connected: {status()}"
         d = s["driver"]
         assert d["kind"] == "visca" and d["url"] == f"visca+udp://127.0.0.1:{camera.port}"

@@ -57,8 +57,8 @@ async def _serve(args: argparse.Namespace) -> None:
             await asyncio.sleep(1.0 if end is None else max(0.0, min(1.0, end - loop.time())))
             pan, tilt = (emulator.twin.axes[a].motor_rad for a in ("pan", "tilt"))
             s, r = emulator.stats, emulator.responder_stats
-            print(f"pan {math.degrees(pan):7.2f}°  tilt {math.degrees(tilt):6.2f}°  zoom {emulator.twin.zoom_counts():5d}  "
-                  f"rx {s.received}  tx {s.sent}  lost {s.dropped_in}+{s.dropped_out}  moves {r.motion_commands}",
-                  flush=True)
+            print(f"pan {math.degrees(pan):7.2f}°  tilt {math.degrees(tilt):6.2f}°  "
+                  f"zoom {emulator.twin.zoom_counts():5d}  rx {s.received}  tx {s.sent}  "
+                  f"lost {s.dropped_in}+{s.dropped_out}  moves {r.motion_commands}", flush=True)
     finally:
         await emulator.close()

@@ -188,7 +188,8 @@ class CameraEmulator:
             if payload == vp.CONTROL_RESET and length == 1:
                 peer.last, peer.answers = None, OrderedDict()
                 self.stats.resets += 1
-                self._later(self.latency_s / 2, self._sendto, addr, vp.PT_CONTROL_REPLY, seq, vp.CONTROL_RESET)
+                self._later(self.latency_s / 2, self._sendto, addr, vp.PT_CONTROL_REPLY, seq,
+                            vp.CONTROL_RESET)
             else:
                 self._sendto(addr, vp.PT_CONTROL_REPLY, seq, vp.CONTROL_ERR_MESSAGE_TYPE)
             return

@@ -86,7 +86,8 @@ def profile_from_mapping(name: str, spec: dict[str, Any]) -> CameraProfile:
     missing = sorted(_KEYS - set(spec))
     unknown = sorted(set(spec) - _KEYS)
     if missing or unknown:
-        raise ConfigError(f"camera profile {name!r}: missing {missing or 'nothing'}, unknown {unknown or 'nothing'}")
+        raise ConfigError(
+            f"camera profile {name!r}: missing {missing or 'nothing'}, unknown {unknown or 'nothing'}")
     deg = math.radians(1.0)
     sign = {}
     for axis in AXES:
@@ -142,4 +143,5 @@ def get_profile(name: str = DEFAULT_PROFILE) -> CameraProfile:
     try:
         return profiles[name]
     except KeyError:
-        raise ConfigError(f"unknown camera profile {name!r}; profiles are {', '.join(sorted(profiles))}") from None
+        raise ConfigError(
+            f"unknown camera profile {name!r}; profiles are {', '.join(sorted(profiles))}") from None

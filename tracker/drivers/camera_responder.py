@@ -179,7 +179,9 @@ class CameraResponder:
                 del self.jobs[socket]
                 send(job.tag, vp.error(socket, vp.ERR_CANCELLED))
 
-    def _start(self, kind: str, tag: object, send: Callable[[object, bytes], None], run: Callable[[], None]) -> None:
+    def _start(
+        self, kind: str, tag: object, send: Callable[[object, bytes], None], run: Callable[[], None]
+    ) -> None:
         self._cancel(kind, send)
         free = [s for s in SOCKETS if s not in self.jobs]
         if not free:

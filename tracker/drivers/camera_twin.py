@@ -86,7 +86,8 @@ class CameraTwin:
     # -- commands (VISCA frame) ------------------------------------------------------------
     def drive(self, pan_code: int, tilt_code: int, pan_dir: int, tilt_dir: int) -> None:
         """Pan-tiltDrive: dir 1 = left/up (negative pan, positive tilt), 2 = right/down, 3 = stop."""
-        for axis, code, direction, positive in (("pan", pan_code, pan_dir, 2), ("tilt", tilt_code, tilt_dir, 1)):
+        commands = (("pan", pan_code, pan_dir, 2), ("tilt", tilt_code, tilt_dir, 1))
+        for axis, code, direction, positive in commands:
             ax = self.axes[axis]
             if direction == 3:
                 ax.mode, ax.drive_rad_s = "drive", 0.0

@@ -184,7 +184,8 @@ class ViscaCamera:
 
     def start(self) -> None:
         if self._task is None or self._task.done():
-            self._task = asyncio.get_running_loop().create_task(self._supervise(), name=f"camera {self.spec.url}")
+            self._task = asyncio.get_running_loop().create_task(
+                self._supervise(), name=f"camera {self.spec.url}")
 
     async def close(self) -> None:
         if self._task is not None:
@@ -260,7 +261,9 @@ class ViscaCamera:
         await self.command(packet, completion=wait, timeout_s=timeout_s)
         return pan_rad, tilt_rad
 
-    async def move_relative(self, dpan_rad: float, dtilt_rad: float, *, wait: bool = True) -> tuple[float, float]:
+    async def move_relative(
+        self, dpan_rad: float, dtilt_rad: float, *, wait: bool = True
+    ) -> tuple[float, float]:
         """Move by (dpan, dtilt) from where the camera is; the end point is clamped to the limits."""
         pan, tilt = await self.inquire_position()
         return await self.move_absolute(pan + dpan_rad, tilt + dtilt_rad, wait=wait)
@@ -366,7 +369,8 @@ class ViscaCamera:
         self._last_answer = now
         measured_at = 0.5 * (sent + now)
         if measured_at >= self._position_t:
-            self._position = {"pan": self.profile.to_rad("pan", pan), "tilt": self.profile.to_rad("tilt", tilt)}
+            self._position = {"pan": self.profile.to_rad("pan", pan),
+                              "tilt": self.profile.to_rad("tilt", tilt)}
             self._position_t, self._have_position = measured_at, True
 
     async def _steer(self) -> None:

@@ -152,7 +152,8 @@ class UdpLink(asyncio.DatagramProtocol):
     async def open(self) -> None:
         if self._transport is None:
             loop = asyncio.get_running_loop()
-            transport, _ = await loop.create_datagram_endpoint(lambda: self, remote_addr=(self.host, self.port))
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda: self, remote_addr=(self.host, self.port))
             self._transport = transport
         await self.reset_sequence()
 
@@ -211,12 +212,13 @@ class UdpLink(asyncio.DatagramProtocol):
                 reply = await self._send_until_answered(ptype, seq, pending, timeout_s, retries)
                 if pending.done is None or reply.kind != "ack":
                     return _raise_if_error(reply, packet)
-                return _raise_if_error(await self._await_completion(ptype, seq, pending, completion_timeout_s),
-                                       packet)
+                done = await self._await_completion(ptype, seq, pending, completion_timeout_s)
+                return _raise_if_error(done, packet)
             except _SequenceRejected:
                 sequence_tries -= 1
                 if sequence_tries < 0:
-                    raise LinkTimeout(f"camera keeps rejecting sequence numbers for {packet.hex(' ')}") from None
+                    raise LinkTimeout(
+                        f"camera keeps rejecting sequence numbers for {packet.hex(' ')}") from None
                 await self.reset_sequence()
             finally:
                 self._pending.pop(seq, None)

@@ -46,10 +46,10 @@ async def test_engine_holds_then_follows_pointing_and_jog_on_a_camera() -> None:
         assert emu.responder_stats.motion_commands == 0  # holding where it is: nothing sent
 
         engine.point(30 * DEG, -8 * DEG)
-        await until(lambda: abs(engine.status().pan_rad - 30 * DEG) < 0.15 * DEG
-                    and abs(engine.status().tilt_rad + 8 * DEG) < 0.15 * DEG, 5.0, "pointing target")
-        truth = -emu.twin.axes["pan"].motor_rad
-        assert truth == pytest.approx(30 * DEG, abs=0.15 * DEG)
+        await until(lambda: abs(-emu.twin.axes["pan"].motor_rad - 30 * DEG) < 0.15 * DEG
+                    and abs(emu.twin.axes["tilt"].motor_rad + 8 * DEG) < 0.15 * DEG
+                    and emu.twin.axes["pan"].speed_rad_s == 0.0, 5.0, "pointing target")
+        await until(lambda: abs(engine.status().pan_rad - 30 * DEG) < 0.15 * DEG, 1.0, "reported angle")
         assert cam.describe()["achieved_rate_hz"] == pytest.approx(25.0, rel=0.2)
 
         engine.jog("pan", -20 * DEG, timeout_s=0.5)

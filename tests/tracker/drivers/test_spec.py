@@ -37,7 +37,8 @@ def test_good_settings_parse(value: str, spec: DriverSpec, url: str) -> None:
         ("visca+udp://admin:pw@cam", "user names"),
         ("visca+udp://bad_host!", "not a host"),
     ],
-    ids=["no-scheme", "http", "no-host", "tcp-no-port", "port-range", "port-0", "path", "query", "userinfo", "host"],
+    ids=["no-scheme", "http", "no-host", "tcp-no-port", "port-range", "port-0", "path", "query",
+         "userinfo", "host"],
 )
 def test_bad_settings_say_what_is_wrong(value: str, match: str) -> None:
     with pytest.raises(ConfigError, match=match):

@@ -154,7 +154,8 @@ async def test_sequence_numbers_are_reset_when_the_camera_refuses_them() -> None
     ("datagram", "reply"),
     [
         (vp.pack_message(vp.PT_COMMAND, 5, bytes.fromhex("81 01 06 99 ff")), (vp.PT_REPLY, "90 60 02 ff")),
-        (vp.pack_message(vp.PT_COMMAND, 6, bytes.fromhex("81 01 06 01 00 01 03 03 ff")), (vp.PT_REPLY, "90 60 02 ff")),
+        (vp.pack_message(vp.PT_COMMAND, 6, bytes.fromhex("81 01 06 01 00 01 03 03 ff")),
+         (vp.PT_REPLY, "90 60 02 ff")),
         (vp.pack_message(vp.PT_COMMAND, 7, bytes.fromhex("82 09 06 12 ff")), (vp.PT_REPLY, "90 60 02 ff")),
         (bytes.fromhex("0100 0009 00000008 81 09 06 12 ff"), (vp.PT_REPLY, "90 60 01 ff")),
         (vp.pack_message(0x0300, 9, b"\x01"), (vp.PT_CONTROL_REPLY, "0f 02")),
@@ -193,7 +194,8 @@ async def test_a_refused_command_raises_with_the_error_name() -> None:
 async def test_reconnects_after_the_camera_restarts_and_does_not_move_on_its_own() -> None:
     emu = CameraEmulator("generic", seed=1)
     port = await emu.start()
-    cam = ViscaCamera(parse_driver_url(f"visca+udp://127.0.0.1:{port}"), get_profile(), LIMITS, link_lost_s=0.3)
+    cam = ViscaCamera(parse_driver_url(f"visca+udp://127.0.0.1:{port}"), get_profile(), LIMITS,
+                      link_lost_s=0.3)
     try:
         cam.start()
         await until(lambda: cam.ready, 5.0, "connection")
@@ -225,7 +227,8 @@ async def test_reconnects_after_the_camera_restarts_and_does_not_move_on_its_own
         cam.enable()
         cam.set_target("pan", math.radians(10.0))
         cam.set_target("tilt", 0.0)
-        await until(lambda: abs(console_angles(restarted)[0] - math.radians(10.0)) < 0.2 * DEG, 5.0, "new target")
+        await until(lambda: abs(console_angles(restarted)[0] - math.radians(10.0)) < 0.2 * DEG, 5.0,
+                    "new target")
     finally:
         await cam.close()
         await emu.close()
@@ -243,7 +246,8 @@ async def test_limits_are_enforced_in_the_driver() -> None:
         await until(lambda: emu.twin.axes["pan"].speed_rad_s == 0.0, 3.0, "stop at the limit")
         assert math.radians(88.0) < console_angles(emu)[0] <= math.radians(90.0)
         cam.set_target("tilt", math.radians(300.0))  # targets are clamped too
-        await until(lambda: abs(console_angles(emu)[1] - math.radians(45.0)) < 0.2 * DEG, 5.0, "tilt at the limit")
+        await until(lambda: abs(console_angles(emu)[1] - math.radians(45.0)) < 0.2 * DEG, 5.0,
+                    "tilt at the limit")
         assert console_angles(emu)[1] <= math.radians(45.0)
 
 

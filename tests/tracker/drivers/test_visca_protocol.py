@@ -28,7 +28,8 @@ from tracker.errors import DataError
         (vp.inquiry_power(), "81 09 04 00 ff"),
     ],
     ids=["drive-upleft", "drive-right", "stop", "absolute", "relative", "home", "preset-set",
-         "preset-recall", "zoom-direct", "zoom-tele", "zoom-wide", "zoom-stop", "inq-pt", "inq-zoom", "inq-power"],
+         "preset-recall", "zoom-direct", "zoom-tele", "zoom-wide", "zoom-stop", "inq-pt", "inq-zoom",
+         "inq-power"],
 )
 def test_packets_match_the_command_lists(packet: bytes, expected: str) -> None:
     assert packet.hex(" ") == expected
