@@ -76,8 +76,9 @@ def test_service_reports_the_camera_and_follows_pointing(tmp_path: Path, camera:
         assert r.status_code == 200, r.text
         arrived = poll(lambda: abs(camera.pan_deg() - 25.0) < 0.2 and abs(camera.tilt_deg() + 8.0) < 0.2, 6.0)
         assert arrived, f"camera at {camera.pan_deg():.2f}/{camera.tilt_deg():.2f}, status {status()}"
-        s = status()
-        assert s["pan_deg"] == pytest.approx(25.0, abs=0.2) and s["tilt_deg"] == pytest.approx(-8.0, abs=0.2)
+        s = poll(lambda: (st := status()) and abs(st["pan_deg"] - 25.0) < 0.2
+                 and abs(st["tilt_deg"] + 8.0) < 0.2 and st, 2.0)
+        assert s, f"status does not report the camera's angles: {status()}"
         assert s["driver"]["rtt_ms_median"] is not None and s["driver"]["rtt_ms_median"] >= 20.0
 
 
