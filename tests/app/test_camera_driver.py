@@ -63,7 +63,8 @@ def test_service_reports_the_camera_and_follows_pointing(tmp_path: Path, camera:
         def status() -> dict:  # type: ignore[type-arg]
             r = client.get(f"{API}/status", headers=h)
             assert r.status_code == 200, r.text
-            return r.json()
+            body: dict = r.json()  # type: ignore[type-arg]
+            return body
 
         s = poll(lambda: (st := status())["driver"]["state"] == "connected"
                  and st["mode"] == "hold" and st, 5.0)
