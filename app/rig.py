@@ -21,8 +21,9 @@ AXES = ("pan", "tilt")
 
 
 def build_driver(settings: Settings, hidden: Any = None, axis: str = "pan") -> Any:
-    """The simulated rig: hidden effects from ``settings.rig_config`` (JSON), or the model
-    ``hidden`` on ``axis`` (the practice rig) with the seed's model on the other axis."""
+    """The simulated rig (experiments run on it whatever the live driver is): hidden effects
+    from ``settings.rig_config`` (JSON), or the model ``hidden`` on ``axis`` (the practice rig)
+    with the seed's model on the other axis."""
     from tracker.drivers.sim import SimDriver, rig_models
 
     if hidden is not None:
@@ -34,6 +35,40 @@ def build_driver(settings: Settings, hidden: Any = None, axis: str = "pan") -> A
     if settings.rig_config is not None:
         return SimDriver.from_config(settings.rig_config)
     return SimDriver()
+
+
+def build_camera(settings: Settings) -> Any:
+    """The VISCA camera of ``settings.driver``, with the engine's soft limits enforced in the
+    driver too (guard margin included), the profile, command rate and steering of the settings."""
+    from tracker.control.limits import SoftLimits
+    from tracker.drivers.camera_profiles import get_profile
+    from tracker.drivers.spec import parse_driver_url
+    from tracker.drivers.visca import ViscaCamera
+
+    margin = math.radians(settings.guard_margin_deg)
+    limits = {}
+    for axis in AXES:
+        lim = SoftLimits.for_axis(axis, margin)
+        limits[axis] = (lim.lower_rad + lim.guard_margin_rad, lim.upper_rad - lim.guard_margin_rad)
+    return ViscaCamera(parse_driver_url(settings.driver), get_profile(settings.camera_profile), limits,
+                       rate_hz=settings.camera_rate_hz, steering=settings.camera_steering)
+
+
+def driver_state(engine: Any) -> dict[str, Any]:
+    """What the status shows about the driver: kind, address, link state, rates, round trips."""
+    driver = getattr(engine, "driver", None)
+    describe = getattr(driver, "describe", None)
+    if callable(describe):
+        out: dict[str, Any] = describe()
+        return out
+    return {"kind": "sim", "url": "sim", "state": "running"}
+
+
+async def close_driver(engine: Any) -> None:
+    """Stop and disconnect a PTZ camera (nothing to do for the simulated rig)."""
+    close = getattr(getattr(engine, "driver", None), "close", None)
+    if close is not None:
+        await close()
 
 
 def check_settings(settings: Settings) -> None:
@@ -49,12 +84,21 @@ def check_settings(settings: Settings) -> None:
 
 
 def build_engine(settings: Settings) -> Any:
-    """The engine on the simulated rig, with the service's phase-margin floor."""
+    """The engine on the configured driver, with the service's phase-margin floor."""
     from tracker.engine import Engine, EngineConfig
 
     config = EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg,
                           guard_margin_rad=math.radians(settings.guard_margin_deg))
-    return Engine(build_driver(settings), config)
+    return Engine(build_live_driver(settings), config)
+
+
+def build_live_driver(settings: Settings) -> Any:
+    """What the engine steers: the PTZ camera ``settings.driver`` names, or the simulated rig."""
+    from tracker.drivers.spec import parse_driver_url
+
+    if parse_driver_url(settings.driver).kind == "visca":
+        return build_camera(settings)
+    return build_driver(settings)
 
 
 def soft_limit_rad(engine: Any, axis: str) -> float:

@@ -29,6 +29,10 @@ class StatusOut(BaseModel):
     telemetry_clients: int
     audio: str = Field("off", description="the simulated room's state as target source")
     viewer: dict[str, Any] | None = None
+    driver: dict[str, Any] = Field(
+        default_factory=lambda: {"kind": "sim"},
+        description="what the engine steers: kind (sim | visca), url, and for a camera its profile, link "
+                    "state (connecting | connected | reconnecting), command rate, round trips, retransmits")
 
 
 class TrackingIn(Strict):

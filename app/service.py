@@ -83,6 +83,9 @@ class Service:
                 await asyncio.wait_for(self._engine_task, timeout=3.0)
             except (TimeoutError, asyncio.CancelledError):
                 self._engine_task.cancel()
+        if self.engine is not None:
+            with contextlib.suppress(Exception):
+                await rig.close_driver(self.engine)
         await self.hub.stop()
         self.db.close()
 

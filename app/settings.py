@@ -31,6 +31,17 @@ class Settings(BaseSettings):
     data_dir: Path = Field(Path("data"), description="SQLite database and the first admin key")
     realtime: bool = Field(True, description="run the engine at wall-clock pace")
 
+    driver: str = Field(
+        "sim",
+        description="what the engine steers: 'sim' (the simulated rig), 'visca+udp://HOST[:52381]' "
+        "(Sony VISCA over IP) or 'visca+tcp://HOST:PORT' (raw VISCA, e.g. PTZOptics on 5678)",
+    )
+    camera_profile: str = Field(
+        "generic", description="PTZ camera profile (tracker/drivers/camera_profiles.toml): "
+        "generic, sony_srg, sony_evi_d70, ptzoptics")
+    camera_rate_hz: float = Field(25.0, ge=5.0, le=50.0, description="commands per second to a PTZ camera")
+    camera_steering: Literal["speed", "position"] = Field(
+        "speed", description="steer a PTZ camera with speed drives (default) or absolute positions")
     rig_config: Path | None = Field(
         None, description="JSON of hidden effects for the simulated rig (tracker/drivers/sim.py)"
     )
@@ -64,6 +75,27 @@ class Settings(BaseSettings):
     @classmethod
     def _check_audio_input(cls, value: str) -> str:
         parse_audio_input(value)
+        return value
+
+    @field_validator("driver")
+    @classmethod
+    def _check_driver(cls, value: str) -> str:
+        from tracker.drivers.spec import parse_driver_url
+
+        try:
+            return parse_driver_url(value).url
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
+
+    @field_validator("camera_profile")
+    @classmethod
+    def _check_camera_profile(cls, value: str) -> str:
+        from tracker.drivers.camera_profiles import get_profile
+
+        try:
+            get_profile(value)
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
         return value
 
     @classmethod

@@ -6,6 +6,11 @@ the compiled controller runs sample by sample through the driver. After each chu
 publishes one :class:`TelemetrySnapshot` (100 Hz). ``run(realtime=True)`` paces chunks to the
 wall clock (serve); ``realtime=False`` runs as fast as possible (batch, tests).
 
+A PTZ camera (:class:`tracker.drivers.camera.CameraDriver`) closes its own loop: the engine
+then sends it each chunk's last target instead of volts and reads back where it points (the
+controllers are not used; the telemetry's command is 0 V). ``run`` starts the camera's link;
+``enable_on_start`` waits until the camera is ready and holds it where it is.
+
 Modes: "manual" (``point``/``jog`` hold until ``release`` or ``set_tracking(True)``),
 "tracking" (targets from the source), "hold" (no target: keep the last one), "disabled"
 (driver disabled), "fault" (a latched driver fault; the driver disables itself).
@@ -34,6 +39,7 @@ from tracker.control.gains import ControllerGains
 from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits
 from tracker.control.loop import S_INIT, S_OM, S_REF, S_TH, controller_step, new_state, pack_controller
 from tracker.control.trajectory import DEFAULT_LIMITS, TrajectoryLimits
+from tracker.drivers.camera import CameraDriver
 from tracker.drivers.motor import AXES, ClosedLoopDriver, MotorDriver
 from tracker.errors import ConfigError, DriverFault
 from tracker.plant.model import AxisModel
@@ -102,10 +108,14 @@ class _Axis:
 class Engine:
     """The tracking engine on a motor driver (see the module docstring)."""
 
-    def __init__(self, driver: MotorDriver, config: EngineConfig | None = None) -> None:
+    def __init__(self, driver: MotorDriver | CameraDriver, config: EngineConfig | None = None) -> None:
         self._driver = driver
         # The compiled fast path, if the driver has one (decided once: Protocol checks are slow).
         self._fast: ClosedLoopDriver | None = driver if isinstance(driver, ClosedLoopDriver) else None
+        self._camera: CameraDriver | None = driver if isinstance(driver, CameraDriver) else None
+        self._motor: MotorDriver | None = (
+            driver if self._camera is None and isinstance(driver, MotorDriver) else None)
+        self._enable_when_ready = False  # a camera: enable_on_start waits for its first position
         self.config = config or EngineConfig()
         self._dt = driver.sample_period_s
         self._n_chunk = max(1, int(round(self.config.chunk_s / self._dt)))
@@ -136,8 +146,8 @@ class Engine:
 
     # -- control surface --------------------------------------------------------------------
     @property
-    def driver(self) -> MotorDriver:
-        """The motor driver the engine commands."""
+    def driver(self) -> MotorDriver | CameraDriver:
+        """The motor driver (or PTZ camera) the engine commands."""
         return self._driver
 
     def stop(self) -> None:
@@ -287,7 +297,10 @@ class Engine:
         self._running = True
         self._stop = False
         first_run, self._ran = not self._ran, True
-        if (
+        if self._camera is not None:
+            self._camera.start()
+            self._enable_when_ready = first_run and self.config.enable_on_start
+        elif (
             first_run
             and self.config.enable_on_start
             and not self._driver.enabled
@@ -325,7 +338,9 @@ class Engine:
         targets = self._chunk_targets(n)
         t_chunk = self._t + np.arange(n, dtype=np.float64) * self._dt
         records: dict[str, np.ndarray] = {}
-        if self._fast is not None:
+        if self._camera is not None:
+            records = self._run_camera(self._camera, targets, n)
+        elif self._fast is not None:
             for a, ax in self._axes.items():
                 records[a] = self._fast.run_closed_loop(a, ax.cp, ax.cs, targets[a])
         else:
@@ -346,7 +361,8 @@ class Engine:
 
     def _run_per_sample(self, targets: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
         out = {a: np.zeros((n, N_REC)) for a in self._axes}
-        drv = self._driver
+        drv = self._motor
+        assert drv is not None
         for k in range(n):
             for a, ax in self._axes.items():
                 y = drv.read_encoder(a)
@@ -357,6 +373,26 @@ class Engine:
                 out[a][k, R_Y], out[a][k, R_U] = y, u
                 out[a][k, 3], out[a][k, 4] = ax.cs[S_REF], ax.cs[S_OM]
             drv.tick()
+        return out
+
+    def _run_camera(self, cam: CameraDriver, targets: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+        """One chunk on a PTZ camera: the chunk's last target out, the camera's angle in."""
+        if self._enable_when_ready and cam.ready and not cam.faults():
+            self._enable_when_ready = False
+            cam.enable()
+            for a in AXES:  # start from where the camera points: nothing moves until told to
+                y = cam.read_encoder(a)
+                self._axes[a].y_rad = y
+                if not self._manual:
+                    self._last_target[a] = y
+                    targets[a][:] = y
+        out = {}
+        for a in AXES:
+            if cam.enabled:
+                cam.set_target(a, float(targets[a][-1]))
+            rec = np.zeros((n, N_REC))
+            rec[:, R_Y] = cam.read_encoder(a)
+            out[a] = rec
         return out
 
     def _chunk_targets(self, n: int) -> dict[str, np.ndarray]:

@@ -7,6 +7,7 @@ from typing import Any
 
 from fastapi import APIRouter
 
+from app import rig
 from app.auth import Engineer, Viewer
 from app.schemas import StatusOut
 from app.service import Service, Svc
@@ -32,6 +33,7 @@ def status_of(svc: Service) -> StatusOut:
         telemetry_clients=svc.hub.clients,
         audio=audio_state(svc),
         viewer=svc.viewer.scene_state() if svc.viewer is not None else None,
+        driver=rig.driver_state(svc.engine),
     )
 
 

@@ -100,6 +100,15 @@ function showFrame(f) {
   placeField(f);
 }
 
+function describeDriver(d) {
+  if (!d || d.kind === "sim") return "simulated rig";
+  const parts = [`${d.url} (${d.profile})`, d.state];
+  if (d.achieved_rate_hz != null) parts.push(`${fmt(d.achieved_rate_hz, 0)} Hz`);
+  if (d.rtt_ms_median != null) parts.push(`RTT ${fmt(d.rtt_ms_median, 0)} ms`);
+  if (d.retransmits) parts.push(`${d.retransmits} resent`);
+  return parts.join(" · ");
+}
+
 async function refreshStatus() {
   try {
     const s = await get("/status");
@@ -107,6 +116,7 @@ async function refreshStatus() {
     $("mode").textContent = s.mode;
     $("talker").textContent = s.active_talker || "–";
     $("audio").textContent = s.audio === "ready" ? "simulated meeting (room model → localizer → talker tracker)" : s.audio;
+    $("driver").textContent = describeDriver(s.driver);
     $("faults").firstChild.textContent = s.faults.length ? `${s.faults.join(", ")} ` : "none ";
     $("faults").style.color = s.faults.length ? "var(--bad)" : "";
     $("clear-faults").hidden = !(s.faults.length && session.can("engineer"));

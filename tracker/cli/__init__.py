@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "tracker.cli.model",
     "tracker.cli.friction",
     "tracker.cli.audio",
+    "tracker.cli.camera",
 )
 # The first word of the command line -> the one module that registers it. Only that module is
 # imported (the others pull in scipy, python-control, pyroomacoustics: seconds of start-up).
@@ -36,6 +37,7 @@ COMMAND_OWNERS = {
     "model": "tracker.cli.model",
     "friction-id": "tracker.cli.friction",
     "audio": "tracker.cli.audio",
+    "camera-emulator": "tracker.cli.camera",
 }
 
 

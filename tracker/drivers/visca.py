@@ -1,0 +1,474 @@
+"""A real PTZ camera over VISCA (Sony's VISCA over IP on UDP, or raw VISCA on TCP) as a
+:class:`tracker.drivers.camera.CameraDriver`.
+
+:meth:`ViscaCamera.start` runs a supervisor task: connect (RESET the sequence numbers, ask the
+power state), then every ``command_period_s`` ask the position and, while enabled with a
+target, send one steering command: a Pan-tiltDrive from :mod:`tracker.drivers.camera_servo`
+(``steering="speed"``, the default) or an AbsolutePosition when the target moved
+(``steering="position"``). Both are sent without waiting for the answer of the previous cycle
+(a lost one is superseded by the next); a stop is repeated for a few cycles.
+
+No answer for ``link_lost_s`` latches the fault "link lost" (the console shows it), disables
+the driver and reconnects with back-off (0.25 s doubling to 5 s). After any (re)connection the
+targets are forgotten: the camera does not move until enabled again and given a target.
+
+The one-shot commands (absolute and relative moves, home, presets, zoom, inquiries) are
+awaitable, sent with retransmission, and refuse to move the camera while disabled. Soft
+limits (the engine's, within the camera's own range) clamp every absolute target, and speed
+drives stop at them.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+from collections.abc import Mapping
+from typing import Any
+
+from tracker.drivers import visca_protocol as vp
+from tracker.drivers.camera_profiles import CameraProfile
+from tracker.drivers.camera_servo import STOP, AxisDrive, axis_drive, dead_band_rad
+from tracker.drivers.motor import AXES
+from tracker.drivers.spec import DriverSpec
+from tracker.drivers.visca_link import ViscaLink, open_link
+from tracker.errors import ConfigError, DriverFault
+
+BACKOFF_START_S = 0.25
+BACKOFF_MAX_S = 5.0
+STOP_REPEATS = 3
+RATE_WINDOW = 25  # command cycles over which the achieved rate is measured
+
+
+class ViscaCamera:
+    """The VISCA camera driver (see the module docstring)."""
+
+    def __init__(
+        self,
+        spec: DriverSpec,
+        profile: CameraProfile,
+        limits_rad: Mapping[str, tuple[float, float]] | None = None,
+        *,
+        rate_hz: float = 25.0,
+        steering: str = "speed",
+        timeout_s: float = 0.1,
+        retries: int = 8,
+        link_lost_s: float = 1.0,
+        link: ViscaLink | None = None,
+    ) -> None:
+        if spec.kind != "visca" or spec.host is None or spec.port is None or spec.transport is None:
+            raise ConfigError(f"ViscaCamera needs a visca+udp/visca+tcp driver spec, got {spec.url!r}")
+        if not 1.0 <= rate_hz <= 100.0:
+            raise ConfigError(f"camera command rate {rate_hz!r} Hz must be in 1..100")
+        if steering not in ("speed", "position"):
+            raise ConfigError(f"camera steering {steering!r} is not 'speed' or 'position'")
+        self.spec, self.profile, self.steering = spec, profile, steering
+        self._period = 1.0 / rate_hz
+        self._timeout, self._retries, self._link_lost_s = timeout_s, retries, link_lost_s
+        self._link = link or open_link(spec.transport, spec.host, spec.port)
+        self._limits: dict[str, tuple[float, float]] = {}
+        for axis in AXES:
+            lo, hi = profile.range_rad[axis]
+            if limits_rad is not None and axis in limits_rad:
+                lo, hi = max(lo, limits_rad[axis][0]), min(hi, limits_rad[axis][1])
+            if not lo < hi:
+                raise ConfigError(f"camera {axis} limits leave no range: [{lo:g}, {hi:g}] rad")
+            self._limits[axis] = (lo, hi)
+        self._enabled = False
+        self._faults: list[str] = []
+        self._state = "stopped"
+        self._last_error: str | None = None
+        self._position: dict[str, float] = {a: 0.0 for a in AXES}
+        self._position_t = 0.0  # monotonic time the position refers to
+        self._have_position = False
+        self._last_answer = 0.0
+        self._target: dict[str, float | None] = {a: None for a in AXES}
+        self._rate: dict[str, float] = {a: 0.0 for a in AXES}
+        self._ff: dict[str, tuple[float, float] | None] = {a: None for a in AXES}  # (target, t) last cycle
+        self._drive: dict[str, AxisDrive] = {a: STOP for a in AXES}
+        # The head's speed as modelled: the commanded table speed reached at the profile's
+        # acceleration (extrapolating with the commanded speed alone ran 0.2 deg past a limit).
+        self._speed: dict[str, float] = {a: 0.0 for a in AXES}
+        self._speed_t = 0.0
+        self._sent_drive: tuple[AxisDrive, AxisDrive] | None = None
+        self._sent_abs: tuple[float, float] | None = None
+        self._stop_repeats = 0
+        self._task: asyncio.Task[None] | None = None
+        self._inflight: set[asyncio.Task[Any]] = set()
+        self._cycle_times: list[float] = []
+        self.cycles = 0
+        self.connects = 0
+
+    # -- CameraDriver ---------------------------------------------------------------------------
+    @property
+    def axes(self) -> tuple[str, ...]:
+        return AXES
+
+    @property
+    def sample_period_s(self) -> float:
+        return 1e-3
+
+    @property
+    def command_period_s(self) -> float:
+        return self._period
+
+    @property
+    def ready(self) -> bool:
+        return self._state == "connected" and self._have_position
+
+    @property
+    def enabled(self) -> bool:
+        return self._enabled
+
+    @property
+    def state(self) -> str:
+        """"stopped", "connecting", "connected" or "reconnecting"."""
+        return self._state
+
+    def limits(self, axis: str) -> tuple[float, float]:
+        """The limits the driver enforces on ``axis`` (rad, console frame)."""
+        return self._limits[self._check_axis(axis)]
+
+    def enable(self) -> None:
+        if self._faults:
+            raise DriverFault(f"cannot enable: fault latched ({'; '.join(self._faults)})")
+        if not self.ready:
+            raise DriverFault(f"cannot enable: camera {self.spec.url} is {self._state}, position unknown")
+        self._forget_targets()
+        self._enabled = True
+
+    def disable(self) -> None:
+        was = self._enabled
+        self._enabled = False
+        self._forget_targets()
+        if was and self._state == "connected":
+            self._stop_repeats = STOP_REPEATS
+
+    def set_target(self, axis: str, angle_rad: float) -> None:
+        self._check_axis(axis)
+        if not self._enabled:
+            return
+        if not math.isfinite(angle_rad):
+            self.latch_fault(f"{axis}: target {angle_rad!r} rad is not finite")
+            return
+        lo, hi = self._limits[axis]
+        self._target[axis] = min(max(float(angle_rad), lo), hi)
+        self._rate[axis] = 0.0
+
+    def set_rate(self, axis: str, rate_rad_s: float) -> None:
+        """A pure speed drive of ``axis`` (rad/s, console frame) that stops at the limits."""
+        self._check_axis(axis)
+        if not self._enabled:
+            raise DriverFault(f"camera {self.spec.url} is disabled: enable it before driving")
+        if not math.isfinite(rate_rad_s):
+            raise ConfigError(f"{axis} rate {rate_rad_s!r} rad/s is not finite")
+        self._target[axis], self._rate[axis] = None, float(rate_rad_s)
+
+    def read_encoder(self, axis: str) -> float:
+        self._check_axis(axis)
+        age = min(time.monotonic() - self._position_t, 2 * self._period) if self._have_position else 0.0
+        return self._position[axis] + self._speed[axis] * age
+
+    def faults(self) -> tuple[str, ...]:
+        return tuple(self._faults)
+
+    def clear_faults(self) -> None:
+        self._faults.clear()
+
+    def latch_fault(self, message: str) -> None:
+        """Latch a fault and disable."""
+        if message not in self._faults:
+            self._faults.append(message)
+        self.disable()
+
+    def start(self) -> None:
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(
+                self._supervise(), name=f"camera {self.spec.url}")
+
+    async def close(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+        if self._state == "connected":
+            with contextlib.suppress(DriverFault):
+                await self._link.request(vp.pan_tilt_stop(), timeout_s=self._timeout, retries=2)
+        for t in list(self._inflight):
+            t.cancel()
+        await self._link.close()
+        self._state = "stopped"
+
+    def describe(self) -> dict[str, Any]:
+        stats = self._link.stats
+        rate = None
+        if len(self._cycle_times) > 1:
+            rate = (len(self._cycle_times) - 1) / max(self._cycle_times[-1] - self._cycle_times[0], 1e-9)
+        return {
+            "kind": "visca",
+            "url": self.spec.url,
+            "profile": self.profile.name,
+            "state": self._state,
+            "steering": self.steering,
+            "command_rate_hz": round(1.0 / self._period, 2),
+            "achieved_rate_hz": None if rate is None else round(rate, 2),
+            "rtt_ms_median": _round(stats.rtt_percentile_ms(50)),
+            "rtt_ms_p95": _round(stats.rtt_percentile_ms(95)),
+            "sent": stats.sent,
+            "retransmits": stats.retransmits,
+            "timeouts": stats.timeouts,
+            "sequence_resets": stats.sequence_resets,
+            "connects": self.connects,
+            "last_error": self._last_error,
+        }
+
+    # -- one-shot commands ----------------------------------------------------------------------
+    async def command(self, packet: bytes, *, completion: bool = False, timeout_s: float = 30.0) -> vp.Reply:
+        """Send a VISCA command with retransmission (the ACK, or the Completion when asked)."""
+        return await self._link.request(packet, completion=completion, timeout_s=self._timeout,
+                                        retries=self._retries, completion_timeout_s=timeout_s)
+
+    async def inquire(self, packet: bytes) -> bytes:
+        """Send a VISCA inquiry with retransmission; the answer's data bytes."""
+        reply = await self._link.request(packet, inquiry=True, timeout_s=self._timeout, retries=self._retries)
+        return reply.data
+
+    async def inquire_position(self) -> tuple[float, float]:
+        """(pan, tilt) in rad, console frame, as the camera reports it now."""
+        pan, tilt = vp.decode_pan_tilt(await self.inquire(vp.inquiry_pan_tilt()))
+        return self.profile.to_rad("pan", pan), self.profile.to_rad("tilt", tilt)
+
+    async def inquire_zoom(self) -> int:
+        """The zoom position (counts, 0 = wide)."""
+        return vp.decode_zoom(await self.inquire(vp.inquiry_zoom()))
+
+    async def inquire_power(self) -> str:
+        """"on", "standby" or "error"."""
+        data = await self.inquire(vp.inquiry_power())
+        return {vp.POWER_ON: "on", vp.POWER_STANDBY: "standby"}.get(data[0] if data else -1, "error")
+
+    async def move_absolute(self, pan_rad: float, tilt_rad: float, *, wait: bool = True,
+                            timeout_s: float = 30.0) -> tuple[float, float]:
+        """Move to (pan, tilt) at full speed, clamped to the limits; returns the clamped target."""
+        self._check_motion()
+        pan_rad, tilt_rad = self._clamp("pan", pan_rad), self._clamp("tilt", tilt_rad)
+        self._forget_targets()
+        packet = vp.pan_tilt_position(
+            len(self.profile.speeds_rad_s["pan"]), len(self.profile.speeds_rad_s["tilt"]),
+            self.profile.to_counts("pan", pan_rad), self.profile.to_counts("tilt", tilt_rad))
+        await self.command(packet, completion=wait, timeout_s=timeout_s)
+        return pan_rad, tilt_rad
+
+    async def move_relative(
+        self, dpan_rad: float, dtilt_rad: float, *, wait: bool = True
+    ) -> tuple[float, float]:
+        """Move by (dpan, dtilt) from where the camera is; the end point is clamped to the limits."""
+        pan, tilt = await self.inquire_position()
+        return await self.move_absolute(pan + dpan_rad, tilt + dtilt_rad, wait=wait)
+
+    async def stop(self) -> None:
+        """Stop pan and tilt now (and forget the targets)."""
+        self._forget_targets()
+        await self.command(vp.pan_tilt_stop())
+
+    async def home(self, *, wait: bool = True) -> None:
+        """Pan-tiltDrive Home (0, 0), which lies inside any limits."""
+        self._check_motion()
+        self._forget_targets()
+        await self.command(vp.pan_tilt_home(), completion=wait)
+
+    async def preset_set(self, number: int) -> None:
+        """Store the current direction and zoom as camera preset ``number`` (0-127)."""
+        await self.command(vp.preset_set(number))
+
+    async def preset_recall(self, number: int, *, wait: bool = True) -> None:
+        """Recall camera preset ``number`` (stored by the camera, so within its own range)."""
+        self._check_motion()
+        self._forget_targets()
+        await self.command(vp.preset_recall(number), completion=wait)
+
+    async def zoom_to(self, counts: int, *, wait: bool = True) -> None:
+        """Zoom to ``counts`` (clamped to 0..zoom_max)."""
+        self._check_motion()
+        await self.command(vp.zoom_direct(min(max(int(counts), 0), self.profile.zoom_max)), completion=wait)
+
+    async def zoom_drive(self, speed: int) -> None:
+        """Zoom toward tele (speed 1..8) or wide (-1..-8); 0 stops."""
+        if speed:
+            self._check_motion()
+        await self.command(vp.zoom_drive(speed))
+
+    async def zoom_stop(self) -> None:
+        """Stop the zoom."""
+        await self.command(vp.zoom_stop())
+
+    # -- the supervisor ---------------------------------------------------------------------
+    async def _supervise(self) -> None:
+        backoff = BACKOFF_START_S
+        while True:
+            self._state = "connecting" if self.connects == 0 else "reconnecting"
+            self._have_position = False
+            try:
+                await self._link.open()
+                await self.inquire_power()
+            except DriverFault as exc:
+                self._last_error = str(exc)
+                await self._link.close()
+                await asyncio.sleep(backoff)
+                backoff = min(2 * backoff, BACKOFF_MAX_S)
+                continue
+            backoff = BACKOFF_START_S
+            self.connects += 1
+            self._forget_targets()  # never move on its own after a (re)connection
+            self._drive = {a: STOP for a in AXES}
+            self._speed = {a: 0.0 for a in AXES}
+            self._state = "connected"
+            self._last_answer = time.monotonic()
+            lost = await self._cycle_until_lost()
+            self._last_error = lost
+            self.latch_fault(f"camera {self.spec.url}: link lost ({lost})")
+            self._state = "reconnecting"
+            for t in list(self._inflight):
+                t.cancel()
+            await self._link.close()
+
+    async def _cycle_until_lost(self) -> str:
+        loop = asyncio.get_running_loop()
+        next_t = loop.time()
+        while True:
+            now = time.monotonic()
+            if now - self._last_answer > self._link_lost_s:
+                return f"no answer for {now - self._last_answer:.1f} s"
+            self.cycles += 1
+            self._cycle_times = [*self._cycle_times[-RATE_WINDOW:], now]
+            self._spawn(self._poll_position())
+            self._spawn(self._steer())
+            next_t += self._period
+            delay = next_t - loop.time()
+            if delay < -self._period:  # fell behind: drop cycles rather than burst
+                next_t, delay = loop.time(), 0.0
+            await asyncio.sleep(max(0.0, delay))
+
+    def _spawn(self, coro: Any) -> None:
+        task = asyncio.get_running_loop().create_task(coro)
+        self._inflight.add(task)
+        task.add_done_callback(self._inflight.discard)
+
+    async def _poll_position(self) -> None:
+        sent = time.monotonic()
+        try:
+            reply = await self._link.request(vp.inquiry_pan_tilt(), inquiry=True,
+                                             timeout_s=2 * self._period, retries=0)
+            pan, tilt = vp.decode_pan_tilt(reply.data)
+        except DriverFault as exc:
+            self._last_error = str(exc)
+            return
+        now = time.monotonic()
+        self._last_answer = now
+        measured_at = 0.5 * (sent + now)
+        if measured_at >= self._position_t:
+            self._position = {"pan": self.profile.to_rad("pan", pan),
+                              "tilt": self.profile.to_rad("tilt", tilt)}
+            self._position_t, self._have_position = measured_at, True
+
+    async def _steer(self) -> None:
+        packet = self._steering_packet()
+        if packet is None:
+            return
+        try:
+            await self._link.request(packet, timeout_s=2 * self._period, retries=0)
+            self._last_answer = time.monotonic()
+        except DriverFault as exc:
+            self._last_error = str(exc)
+            self._sent_drive = self._sent_abs = None  # send again next cycle
+
+    def _steering_packet(self) -> bytes | None:
+        now = time.monotonic()
+        step = self.profile.accel_rad_s2 * min(now - self._speed_t, 2 * self._period)
+        self._speed_t = now
+        for axis in AXES:
+            dv = self._drive[axis].speed_rad_s - self._speed[axis]
+            self._speed[axis] += max(-step, min(dv, step))
+        if not (self._enabled and self._have_position):
+            self._drive = {a: STOP for a in AXES}
+            if self._stop_repeats > 0:
+                self._stop_repeats -= 1
+                return vp.pan_tilt_stop()
+            return None
+        if self.steering == "position" and all(self._target[a] is not None for a in AXES):
+            self._drive = {a: STOP for a in AXES}
+            return self._position_packet()
+        latency = (self._link.stats.rtt_percentile_ms(50) or 0.0) * 1e-3
+        for axis in AXES:
+            target = self._target[axis]
+            rate = self._rate[axis]
+            if target is not None:
+                last = self._ff[axis]
+                rate = 0.0 if last is None else (target - last[0]) / max(now - last[1], 1e-3)
+                rate = max(-self.profile.max_speed_rad_s(axis), min(rate, self.profile.max_speed_rad_s(axis)))
+                self._ff[axis] = (target, now)
+            elif rate == 0.0:
+                self._drive[axis] = STOP
+                continue
+            self._drive[axis] = axis_drive(
+                self.profile, axis, position_rad=self.read_encoder(axis), target_rad=target,
+                rate_rad_s=rate, limits_rad=self._limits[axis], period_s=self._period, latency_s=latency)
+        pan, tilt = self._drive["pan"], self._drive["tilt"]
+        moving = pan.direction != 0 or tilt.direction != 0
+        if moving:
+            self._stop_repeats = STOP_REPEATS
+        elif self._stop_repeats > 0:
+            self._stop_repeats -= 1
+        else:
+            return None
+        self._sent_drive = (pan, tilt)
+        return self._drive_packet(pan, tilt)
+
+    def _drive_packet(self, pan: AxisDrive, tilt: AxisDrive) -> bytes:
+        # console -> VISCA frame: VISCA pan positive is right (direction byte 2), tilt up (1).
+        visca_pan = pan.direction * self.profile.sign["pan"]
+        visca_tilt = tilt.direction * self.profile.sign["tilt"]
+        pan_dir = vp.PAN_STOP if visca_pan == 0 else (vp.PAN_RIGHT if visca_pan > 0 else vp.PAN_LEFT)
+        tilt_dir = vp.TILT_STOP if visca_tilt == 0 else (vp.TILT_UP if visca_tilt > 0 else vp.TILT_DOWN)
+        return vp.pan_tilt_drive(pan.code, tilt.code, pan_dir, tilt_dir)
+
+    def _position_packet(self) -> bytes | None:
+        pan, tilt = self._target["pan"], self._target["tilt"]
+        assert pan is not None and tilt is not None
+        dead = {a: dead_band_rad(self.profile, a, self._period) for a in AXES}
+        if self._sent_abs is not None and abs(pan - self._sent_abs[0]) < dead["pan"] \
+                and abs(tilt - self._sent_abs[1]) < dead["tilt"]:
+            return None
+        self._sent_abs = (pan, tilt)
+        return vp.pan_tilt_position(
+            len(self.profile.speeds_rad_s["pan"]), len(self.profile.speeds_rad_s["tilt"]),
+            self.profile.to_counts("pan", pan), self.profile.to_counts("tilt", tilt))
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _forget_targets(self) -> None:
+        for a in AXES:
+            self._target[a], self._rate[a], self._ff[a] = None, 0.0, None
+        self._sent_abs = None
+        self._stop_repeats = 0
+
+    def _check_motion(self) -> None:
+        if not self._enabled:
+            raise DriverFault(f"camera {self.spec.url} is disabled"
+                              + (f" (fault: {'; '.join(self._faults)})" if self._faults else ""))
+
+    def _clamp(self, axis: str, angle_rad: float) -> float:
+        if not math.isfinite(angle_rad):
+            raise ConfigError(f"{axis} target {angle_rad!r} rad is not finite")
+        lo, hi = self._limits[axis]
+        return min(max(float(angle_rad), lo), hi)
+
+    def _check_axis(self, axis: str) -> str:
+        if axis not in AXES:
+            raise ConfigError(f"unknown axis {axis!r}; the camera has {', '.join(AXES)}")
+        return axis
+
+
+def _round(value: float | None) -> float | None:
+    return None if value is None else round(value, 2)
