@@ -1,0 +1,1 @@
+"""Independent truth generator and blind matrix for the model workbench (imports nothing from tracker)."""
