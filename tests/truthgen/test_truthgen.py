@@ -387,3 +387,16 @@ def test_sample_cases_are_good_logs_with_a_full_truth(tmp_path: Path) -> None:
     t, u, th = read_csv(path)
     assert np.array_equal(t, log.t) and np.array_equal(u, log.u) and np.array_equal(th, log.theta)
     assert json.loads(path.with_suffix(".json").read_text())["params"] == truth["params"]
+
+
+def test_check_log_rejects_a_log_that_does_not_move() -> None:
+    from tests.truthgen.run import Log
+
+    spec = case_spec("clean-000")
+    n = 30 * spec.rate_hz
+    t = np.arange(n) / spec.rate_hz
+    still = Log(t, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n))
+    problems = check_log(still, spec, make_axis())
+    assert any("span" in p for p in problems) and any("moving" in p for p in problems)
+    wild = 5.0 * np.sin(2 * np.pi * 3.0 * t)  # too fast and off the range
+    assert any("speed" in p for p in check_log(Log(t, np.zeros(n), wild, wild, wild), spec, make_axis()))
