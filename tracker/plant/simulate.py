@@ -181,9 +181,13 @@ def advance(x: FloatArray, P: FloatArray, u: FloatArray, k: int, dt: float, dist
         # Leapfrog: the velocity lives at half steps, so its kick spans [t − h/2, t + h/2].
         # The command may step at t (a sample instant): each half takes its own held command,
         # and friction acts on each half (Karnopp is not linear in the torque).
-        t = k * dt + i * h
-        u_a = _applied_command(u, t - half_h, half_h, dt, P)
-        u_b = _applied_command(u, t, half_h, dt, P)
+        if P[I_DELAY] == 0.0:  # the common case, without the general averaging
+            u_b = _held_command(u, k, P[I_ULIM])
+            u_a = _held_command(u, k - 1, P[I_ULIM]) if i == 0 else u_b
+        else:
+            t = k * dt + i * h
+            u_a = _applied_command(u, t - half_h, half_h, dt, P)
+            u_b = _applied_command(u, t, half_h, dt, P)
         if P[I_TWO] == 0.0:
             th = x[0]
             rest = -P[I_OFFSET] + dist_nm

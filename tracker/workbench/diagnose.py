@@ -186,6 +186,17 @@ def diagnose(
             f"instead of {current.fit_percent:.3f} %; "
             "candidates are judged against that refit (run `tracker model fit`)",
         ) + notes
+    latency = next((c for c in candidates if c.finding == "computational latency"), None)
+    if latency is not None and latency.model is not None:
+        # A one-sample latency is part of the loop, not a missing effect of the axis; judge the
+        # rest against a model that has it, or every other candidate competes to explain it.
+        inner = diagnose(meas, latency.model, horizon_s, lambda f: step(0.8 + 0.2 * f), cancel)
+        found = [c for c in inner.candidates if c.significant]
+        others = [c for c in inner.candidates if not c.significant]
+        candidates = [*found, latency, *others]
+        verdict = inner.verdict
+        notes = tuple(n for n in notes if "computational latency" in n) + inner.notes
+        base_model = latency.model
     step(1.0)
     elapsed = time.perf_counter() - t0
     return Diagnosis(current.fit_percent, verdict, tuple(candidates), notes, elapsed, dict(base_model.params))

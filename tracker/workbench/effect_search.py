@@ -82,15 +82,20 @@ def _refine_1d(
 
 def ripple_periodogram(residual: FloatArray, theta_rad: FloatArray, cycles: FloatArray) -> FloatArray:
     """Power of the residual at each (real, not only whole) number of ``cycles`` per revolution
-    of θ. Returns shape (cycles.size,)."""
+    of θ; ``cycles`` must be evenly spaced. Returns shape (cycles.size,)."""
     r = residual - residual.mean()
     power = np.empty(cycles.size)
-    chunk = max(1, 2_000_000 // max(1, r.size))
-    for i in range(0, cycles.size, chunk):
-        n = cycles[i : i + chunk]
-        phase = np.outer(n, theta_rad)
-        c, s = np.cos(phase) @ r, np.sin(phase) @ r
-        power[i : i + chunk] = (c * c + s * s) / r.size
+    if cycles.size == 0:
+        return power
+    step = float(cycles[1] - cycles[0]) if cycles.size > 1 else 0.0
+    rz = r * np.exp(1j * cycles[0] * theta_rad)
+    z = np.exp(1j * step * theta_rad)
+    for i in range(cycles.size):
+        if i and i % 256 == 0:  # re-anchor: the running product drifts slowly
+            rz = r * np.exp(1j * cycles[i] * theta_rad)
+        acc = rz.sum()
+        power[i] = (acc.real * acc.real + acc.imag * acc.imag) / r.size
+        rz *= z
     return power
 
 
@@ -183,7 +188,7 @@ def _screen_ripple(design: TorqueDesign, model: AxisModel, base: Structure, base
     power = ripple_periodogram(base_reg.residual, th, cycles)
     best: tuple[float, Structure, Regression, float] | None = None
     for n0 in _ripple_peaks(power, cycles, resolution, 3):
-        local = np.linspace(max(1.5, n0 - 0.5 * resolution), n0 + 0.5 * resolution, 5)
+        local = np.linspace(max(2.0, n0 - 0.5 * resolution), max(2.0, n0 + 0.5 * resolution), 5)
         st, reg, n = _refine_1d(
             design, lambda v: base.plus("ripple", **{"ripple.cycles_per_rev": v}), local, ne, log=False
         )

@@ -10,6 +10,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import stats
 
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
@@ -28,13 +29,12 @@ MIN_KSTEP_ROBUST = 0.025
 MIN_BREAKAWAY_T = 4.0
 REFINE_TOP = 2
 MIN_BACKLASH_GAIN = 0.15
-MIN_BACKLASH_SIGNIFICANT_COUNTS = 8
+MIN_BACKLASH_SIGNIFICANT_COUNTS = 3
 MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but not explode
 MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no delay at all)
 MIN_DRIVE_DELAY_SAMPLES = 1.5  # below: one controller tick of computational latency
 MAX_RESONANT_DAMPING = 1.0 / 2.0**0.5  # |H| of a second-order system peaks only below this
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
-PARSIMONY_PER_PARAM = 0.02
 OVERWHELMING_P = 1e-10
 MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
 BELT_FREQUENCIES_HZ = (3.0, 4.5, 6.5, 9.0, 12.0, 16.0, 22.0, 30.0, 42.0, 60.0)
@@ -43,10 +43,12 @@ EFFECT_PARAMS = {"gravity": 2, "ripple": 3, "stiction": 2, "compliance": 2}
 MIN_HELD_OUT_GAIN = 0.05
 STICTION_RATIOS = (1.1, 1.25, 1.4, 1.6, 1.8, 2.0, 2.4)  # break-away / Coulomb tried by simulation
 STRIBECK_VELOCITIES = (0.02, 0.05, 0.1)  # rad/s
+DELAY_SAMPLES = (0.5, 1, 1.5, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64, 90)  # delays tried by simulation
 TORQUE_EFFECTS = ("offset", "coulomb_asymmetry", "viscous_asymmetry", "gravity", "ripple")
 # Torque-type effects keep their inverse-dynamics parameters (a direct regression on the torque
 # is more accurate than a k-step refit); these act through the simulation and are refitted.
 REFINED_BY_SIMULATION = ("stiction", "delay", "saturation", "compliance")
+HIDDEN_STATE_EFFECTS = ("compliance",)
 
 
 @dataclass(slots=True)
@@ -64,11 +66,12 @@ class Judged:
     passed: bool = False  # passed the gates of size and agreement (before the physics check)
 
     def rank_key(self) -> tuple[bool, float]:
-        """Significant first, then by the mean of held-out screening gain and k-step gain, less a
-        small charge per parameter (a two-parameter effect must explain clearly more than a
-        one-parameter look-alike: gravity over a small range imitates a bias torque)."""
-        gain = 0.5 * (self.screen.gain_cv + self.cmp.improvement)
-        return (not self.significant, -(gain - PARSIMONY_PER_PARAM * EFFECT_PARAMS.get(self.effect, 1)))
+        """Significant first, then by the mean of held-out screening gain and k-step gain."""
+        return (not self.significant, -0.5 * (self.screen.gain_cv + self.cmp.improvement))
+
+    @property
+    def n_params(self) -> int:
+        return EFFECT_PARAMS.get(self.effect, 1)
 
 
 def with_values(model: AxisModel, values: Mapping[str, float], add: str | None = None) -> AxisModel:
@@ -176,9 +179,21 @@ def judge_candidate(
             cmp = judge.compare(base_score, score)
         by_breakaway = ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T
         screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway
-    if effect == "compliance" and not screen_ok:
+    if effect == "delay":
+        # In closed loop the command answers the disturbance a little later, which biases the
+        # regression's alignment of the whole input: judge the delay by simulation as well, on
+        # a grid of whole and half samples, chosen and judged on halves of the run.
+        search = _delay_search(judge, base_model, base_score, cand)
+        if search.held_out_gain > cmp.improvement:
+            cand, score = search.best, judge.score(search.best)
+            cmp = judge.compare(base_score, score)
+        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN
+    if effect == "compliance":
         # A soft belt (load resonance inside the control loop's band) defeats the torque
-        # regression; search it by simulation instead, chosen and judged on halves.
+        # regression, and the regression's damping is rough: search the belt by simulation
+        # too (around the screening's frequency as well), chosen and judged on halves.
+        f_screen = float(cand.params["compliance.frequency"])
+        freqs = sorted({*BELT_FREQUENCIES_HZ, *(f_screen * r for r in (0.8, 0.9, 1.0, 1.1, 1.25))})
         search = held_out_search(
             judge,
             base_score,
@@ -186,14 +201,15 @@ def judge_candidate(
                 with_values(
                     base_model, {"compliance.frequency": f, "compliance.damping": z}, add="compliance"
                 )
-                for f in BELT_FREQUENCIES_HZ
+                for f in freqs
+                if f < get_param("compliance.frequency").upper
                 for z in BELT_DAMPINGS
             ],
         )
-        if search.held_out_gain > cmp.improvement:
+        if search.held_out_gain > cmp.improvement or not _physical(effect, cand, ctx):
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
-        screen_ok = min(search.gains) >= MIN_HELD_OUT_GAIN
+        screen_ok = (screen_ok and _physical(effect, cand, ctx)) or min(search.gains) >= MIN_HELD_OUT_GAIN
     significant = screen_ok and _kstep_ok(effect, cmp, scr.p_value)
     if effect == "backlash":
         significant = _backlash_significant(scr, screens, cmp, ctx.sig.encoder_step_rad)
@@ -226,7 +242,16 @@ def refine_leaders(
     Gives the verdict its final parameters and standard errors, and a second chance to effects
     acting through the simulation whose screening values (inertia split, damping) are rough.
     """
-    hopeful = [r for r in rows if r.screen_ok and r.cmp.improvement > 0 and r.effect in REFINED_BY_SIMULATION]
+    # A hidden-state effect supported by the screening may predict worse before its refit (the
+    # inertia split and the rigid body's values come from a rough regression), so it is refined
+    # whatever its first k-step score; the others only when they already predict better.
+    hopeful = [
+        r
+        for r in rows
+        if r.screen_ok
+        and r.effect in REFINED_BY_SIMULATION
+        and (r.cmp.improvement > 0 or r.effect in HIDDEN_STATE_EFFECTS)
+    ]
     for i, r in enumerate(hopeful[:REFINE_TOP]):
         step(0.7 + 0.1 * i)
         refined, se = refine(judge, r.model, cancel=cancel)
@@ -250,8 +275,20 @@ def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: 
 
 
 def rank(rows: list[Judged]) -> None:
-    """Best first (in place); a bias torque ahead of its equivalent direction-dependent friction."""
+    """Best first (in place); a bias torque ahead of its equivalent direction-dependent friction.
+
+    Parsimony: a significant leader with more parameters than a significant look-alike (gravity
+    over a small range imitates a bias torque) leads only if it explains significantly more of
+    the torque (F-test on the effective sample size) and also predicts better by simulation;
+    otherwise the simpler story leads.
+    """
     rows.sort(key=Judged.rank_key)
+    for j in range(1, len(rows)):
+        top, other = rows[0], rows[j]
+        if not other.significant:
+            break
+        if other.n_params < top.n_params and not _explains_more(top, other):
+            rows[0], rows[j] = other, top
     names = [r.effect for r in rows]
     if "offset" in names and "coulomb_asymmetry" in names:
         i, j = names.index("coulomb_asymmetry"), names.index("offset")
@@ -259,6 +296,30 @@ def rank(rows: list[Judged]) -> None:
             gi, gj = rows[i].cmp.improvement, rows[j].cmp.improvement
             if gj >= gi - 0.02 * max(abs(gi), 1e-9) - 0.01:
                 rows[i], rows[j] = rows[j], rows[i]
+
+
+def _delay_search(
+    judge: KStepJudge, base: AxisModel, base_score: KStepScore, cand: AxisModel
+) -> HeldOutSearch:
+    dt = judge.dt
+    grid = {round(cand.params["delay.seconds"] / dt * 2) / 2, *DELAY_SAMPLES}
+    seconds = sorted(v * dt for v in grid if 0 < v * dt <= get_param("delay.seconds").upper)
+    return held_out_search(
+        judge, base_score, [with_values(base, {"delay.seconds": d}, add="delay") for d in seconds]
+    )
+
+
+def _explains_more(rich: Judged, simple: Judged) -> bool:
+    """Whether ``rich`` (more parameters) explains significantly more than ``simple``: by an
+    F-test on the torque (effective sample size) and by simulation."""
+    r, q = rich.screen.regression, simple.screen.regression
+    extra = max(1, rich.n_params - simple.n_params)
+    dof = max(1.0, r.n_eff - len(r.names))
+    if r.sse <= 0.0 or q.sse <= r.sse:
+        return False
+    f = ((q.sse - r.sse) / extra) / (r.sse / dof)
+    better_torque = float(stats.f.sf(f, extra, dof)) < MAX_SCREEN_P
+    return better_torque and rich.score.sse < simple.score.sse
 
 
 def _stiction_search(
@@ -348,7 +409,9 @@ def _backlash_significant(
     simulation must not be made much worse by it.
     """
     other = screens.get("compliance")
-    beats_belt = other is None or scr.gain_cv > other.gain_cv
+    # Only a belt with a resonance competes (an overdamped one is the extra state fitting noise).
+    resonant = other is not None and other.params.get("compliance.damping", 0.0) < MAX_RESONANT_DAMPING
+    beats_belt = not resonant or other is None or scr.gain_cv > other.gain_cv
     wide = scr.params.get("backlash.width", 0.0) >= MIN_BACKLASH_SIGNIFICANT_COUNTS * max(step_rad, 1e-12)
     sane = cmp.improvement > MIN_BACKLASH_KSTEP
     return scr.gain_cv >= MIN_BACKLASH_GAIN and scr.p_value <= MAX_SCREEN_P and beats_belt and wide and sane
