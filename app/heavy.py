@@ -7,6 +7,8 @@ read and write the database. The semantics are those of ``tracker model ...``.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import Any
 
 from app.modelio import decimate_index, model_from_json, model_to_json, plain, series_deg
@@ -118,3 +120,82 @@ def practice_run(
     meas = record_experiment(model_from_json(truth_json), axis, kind, duration_s, seed)
     text = format_log(meas)
     return {"csv": text, **first_version(label, axis, text)}
+
+
+def result_json(value: Any) -> Any:  # noqa: ANN401 - any result object in, JSON-ready value out
+    """JSON-ready copy of a result object (dataclass, numpy values, nested containers)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: result_json(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if hasattr(value, "tolist"):
+        return result_json(value.tolist())
+    if isinstance(value, dict):
+        return {str(k): result_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [result_json(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def gain_margins(model_json: dict[str, Any], gains: Any, floor_deg: float) -> dict[str, Any]:  # noqa: ANN401
+    """Phase/gain margins and stability of ``gains`` on the model (DesignReport as JSON), and
+    ``acceptable``: stable with at least ``floor_deg`` of phase margin."""
+    from tracker.control.design import check_gains
+
+    out: dict[str, Any] = result_json(check_gains(model_from_json(model_json), gains, floor_deg))
+    pm = out.get("phase_margin_deg")
+    out["acceptable"] = bool(out.get("stable")) and pm is not None and pm >= floor_deg
+    return out
+
+
+def step_prediction(
+    model_json: dict[str, Any],
+    gains: Any,  # noqa: ANN401 - a ControllerGains
+    amplitude_deg: float,
+    duration_s: float,
+    shaping: Any = None,  # noqa: ANN401 - TrajectoryLimits or None
+) -> dict[str, Any]:
+    """Predicted step response, as {"t_s": [...], "angle_deg": [...], figures} (decimated): the
+    engine's full nonlinear loop on the model, through ``shaping`` when given (what the rig does)."""
+    from tracker.control.design import predicted_step_response
+
+    res = predicted_step_response(
+        model_from_json(model_json), gains, math.radians(amplitude_deg), duration_s, shaping=shaping
+    )
+    step = max(1, len(res.t_s) // 400)
+    out: dict[str, Any] = result_json(
+        {
+            "rise_time_s": res.rise_time_s,
+            "overshoot_percent": res.overshoot_percent,
+            "settling_time_s": res.settling_time_s,
+            "peak_command_v": res.peak_command_v,
+            "t_s": res.t_s[::step].round(5),
+            "angle_deg": (res.theta_rad[::step] * 180.0 / math.pi).round(4),
+            "amplitude_deg": amplitude_deg,
+        }
+    )
+    return out
+
+
+def gain_preview(
+    model_json: dict[str, Any],
+    current: Any,  # noqa: ANN401 - ControllerGains
+    candidate: Any,  # noqa: ANN401 - ControllerGains
+    amplitude_deg: float,
+    duration_s: float,
+    shaping: Any,  # noqa: ANN401 - TrajectoryLimits or None
+    floor_deg: float,
+) -> dict[str, Any]:
+    """Margins of ``candidate`` and the predicted steps of both gain sets."""
+    return {
+        "margins": gain_margins(model_json, candidate, floor_deg),
+        "step": step_prediction(model_json, candidate, amplitude_deg, duration_s, shaping),
+        "current_step": step_prediction(model_json, current, amplitude_deg, duration_s, shaping),
+    }
+
+
+def warm_up() -> None:
+    """Import what the heavy work needs (a new worker's first request is then not slower)."""
+    import tracker.control.design
+    import tracker.workbench.diagnose
+    import tracker.workbench.fit  # noqa: F401

@@ -14,7 +14,7 @@ from typing import Annotated, Any
 
 from fastapi import Depends, Request
 
-from app import rig
+from app import heavy, rig
 from app.auth import ensure_admin_key
 from app.backoff import BadKeyBackoff
 from app.control_lock import ControlLock
@@ -52,6 +52,7 @@ class Service:
         """Build and start the engine, the telemetry hub, the audio target source and the 3D view."""
         s = self.settings
         self.engine = rig.build_engine(s)
+        self.work.warm(heavy.warm_up)
         self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
         self.hub.start(self.engine)
         if s.audio_enabled:

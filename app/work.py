@@ -78,6 +78,10 @@ class WorkPool:
                 "a worker process died during this request (out of memory?); the pool is starting again"
             ) from None
 
+    def warm(self, fn: Callable[[], object]) -> None:
+        """Start the workers now with ``fn`` (imports), so the first request does not wait for them."""
+        self._pool().submit(fn)
+
     def _release(self, key_id: int, duration_s: float | None) -> None:
         self._admitted -= 1
         self._by_key[key_id] -= 1
