@@ -12,6 +12,7 @@ the JSON error of app/errors.py.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 from fastapi import params
@@ -45,11 +46,12 @@ def takes_upload(route: APIRoute) -> bool:
 
 
 class RequestGuard:
-    """ASGI middleware in front of the routes; see the module docstring."""
+    """ASGI middleware in front of ``routes`` (mounted under ``prefix``); see the module docstring."""
 
-    def __init__(self, app: ASGIApp) -> None:
+    def __init__(self, app: ASGIApp, prefix: str, routes: Sequence[APIRoute]) -> None:
         self.app = app
-        self._routes: dict[int, tuple[Role | None, bool]] = {}
+        self.prefix = prefix
+        self._routes = [(route, required_role(route.dependant), takes_upload(route)) for route in routes]
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         svc = getattr(scope["app"].state, "svc", None) if "app" in scope else None
@@ -70,12 +72,14 @@ class RequestGuard:
 
     def _route_needs(self, scope: Scope) -> tuple[Role | None, bool]:
         """(the role the matching route needs, whether it takes an upload); (None, False) if none."""
-        for route in scope["app"].router.routes:
-            if isinstance(route, APIRoute) and route.matches(scope)[0] == Match.FULL:
-                needs = self._routes.get(id(route))
-                if needs is None:
-                    needs = self._routes[id(route)] = (required_role(route.dependant), takes_upload(route))
-                return needs
+        path: str = scope["path"]
+        if not path.startswith(self.prefix + "/"):
+            return None, False
+        # Match on a fresh scope with the prefix stripped: the routes as their routers declared them.
+        probe = {"type": "http", "method": scope["method"], "path": path[len(self.prefix):], "root_path": ""}
+        for route, role, upload in self._routes:
+            if route.matches(probe)[0] == Match.FULL:
+                return role, upload
         return None, False
 
     def _check_key(self, svc: Any, scope: Scope, role: Role) -> Exception | None:  # noqa: ANN401

@@ -11,6 +11,7 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse
+from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 from starlette.requests import Request
 from starlette.responses import Response
@@ -72,7 +73,9 @@ def create_app(settings: Settings | None = None, banner_port: int | None = None)
     errors.install(app)
     for router in ALL_ROUTERS:
         app.include_router(router, prefix=API_PREFIX)
-    app.add_middleware(RequestGuard)  # inside security_headers below (the last added is outermost)
+    api_routes = [r for router in ALL_ROUTERS for r in router.routes if isinstance(r, APIRoute)]
+    # Inside security_headers below (the last added is outermost).
+    app.add_middleware(RequestGuard, prefix=API_PREFIX, routes=api_routes)
 
     @app.middleware("http")
     async def security_headers(request: Request, call_next: object) -> Response:
