@@ -139,7 +139,7 @@ def first_admin_key_valid(svc: Service, key_path: Path) -> bool:
 
 
 def bind(host: str, port: int) -> socket.socket:
-    """A listening-ready TCP socket on ``host``:``port`` (0 picks a free port); ConfigError when taken."""
+    """A listening TCP socket on ``host``:``port`` (0 picks a free port); ConfigError when taken."""
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -148,6 +148,7 @@ def bind(host: str, port: int) -> socket.socket:
     except OSError as exc:
         sock.close()
         raise ConfigError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    sock.listen(2048)  # connections queue from now on, so the banner's address answers at once
     sock.set_inheritable(True)
     return sock
 
