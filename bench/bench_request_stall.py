@@ -10,7 +10,8 @@ before and after, and the response's status, size and time.
     PYTHONPATH=. .venv/bin/python bench/bench_request_stall.py --compare-rows 1000000
 
 Scenarios: a 10 MB and a 50 MB body that is valid JSON but invalid for the schema (a viewer's
-gain preview whose ``gains`` hold strings), a 10 MB body that is not JSON, a 50 MB body sent
+gain preview whose ``gains`` hold strings), the same at 60 kB (just under ``max_body_bytes``),
+a 10 MB body that is not JSON, a 50 MB body sent
 with no key, 2000 bad keys in a row; with ``--compare-rows``, four parallel ``compare`` calls by
 a viewer on a measurement of that many rows (put straight into the database, as one stored
 before any row cap).
@@ -126,7 +127,7 @@ def post(client: httpx.Client, path: str, body: bytes, key: str | None) -> tuple
 
 
 def strings_body(size: int) -> bytes:
-    n = size // 16
+    n = size // 18  # each entry is 18 bytes: "k00000000": "x", 
     return json.dumps({"gains": {f"k{i:08d}": "x" for i in range(n)}}).encode()
 
 
@@ -207,6 +208,9 @@ def main() -> int:
                         proc.pid,
                         lambda b=body: post(c, preview, b, viewer),
                     )
+                body = strings_body(60_000)
+                scenario("60 kB schema-invalid JSON (under the cap)", frames, proc.pid,
+                         lambda b=body: post(c, preview, b, viewer))
                 garbage = b"{" + b"x" * 10_000_000
                 scenario(
                     "10 MB non-JSON body, viewer", frames, proc.pid, lambda: post(c, preview, garbage, viewer)

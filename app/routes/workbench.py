@@ -129,9 +129,9 @@ def _insert_measurement(
     return mid, svc.db.add_version(mid, None, "base", fitted["model"], fitted["fit"])
 
 
-def stored_measurement(svc: Service, mid: int) -> dict[str, Any]:
-    """The stored record (with its CSV text); NotFound (404) when unknown."""
-    rec = svc.db.get_measurement(mid)
+async def stored_measurement(svc: Service, mid: int) -> dict[str, Any]:
+    """The stored record (with its CSV text, read in a thread: megabytes); NotFound (404) when unknown."""
+    rec = await asyncio.to_thread(svc.db.get_measurement, mid)
     if rec is None:
         raise NotFound(f"no measurement {mid}")
     return rec
@@ -144,7 +144,7 @@ async def list_measurements(svc: Svc, who: Viewer) -> list[dict[str, Any]]:
 
 @router.get("/measurements/{mid}", summary="A measurement: metadata and decimated series for plots")
 async def get_measurement(mid: RowId, svc: Svc, who: Viewer) -> dict[str, Any]:
-    rec = stored_measurement(svc, mid)
+    rec = await stored_measurement(svc, mid)
     series = await svc.work.run(who, heavy.measurement_series, rec.pop("csv"), rec["name"])
     return {**rec, "series": series}
 
@@ -161,7 +161,7 @@ def _with_version(out: dict[str, Any], v: dict[str, Any]) -> dict[str, Any]:
 
 @router.post("/measurements/{mid}/compare", summary="Compare a model version with the measurement")
 async def compare(mid: RowId, body: CompareIn, svc: Svc, who: Viewer) -> dict[str, Any]:
-    rec = stored_measurement(svc, mid)
+    rec = await stored_measurement(svc, mid)
     v, _ = load_version(svc.db, mid, body.version_id)
     out = await svc.work.run(
         who, heavy.compare, rec["csv"], rec["name"], v["model"], body.horizon_s, body.mode
@@ -171,7 +171,7 @@ async def compare(mid: RowId, body: CompareIn, svc: Svc, who: Viewer) -> dict[st
 
 @router.post("/measurements/{mid}/diagnose", summary="Rank the missing effects of a model version")
 async def diagnose_route(mid: RowId, body: DiagnoseIn, svc: Svc, who: Engineer) -> dict[str, Any]:
-    rec = stored_measurement(svc, mid)
+    rec = await stored_measurement(svc, mid)
     v, _ = load_version(svc.db, mid, body.version_id)
     out = await svc.work.run(who, heavy.diagnose, rec["csv"], rec["name"], v["model"])
     return _with_version(out, v)
@@ -185,7 +185,7 @@ async def _refit_into_version(
     free: list[str] | None = None,
     add_effect: str | None = None,
 ) -> dict[str, Any]:
-    rec = stored_measurement(svc, mid)
+    rec = await stored_measurement(svc, mid)
     v, model = load_version(svc.db, mid, version_id)
     if add_effect is not None:
         get_effect(add_effect)
