@@ -174,6 +174,11 @@ def run_server(
     bound_port = int(sock.getsockname()[1])
     app = create_app(settings, banner_port=bound_port)
     server_config = uvicorn.Config(
-        app, host=settings.host, port=bound_port, log_level=settings.log_level, ws_ping_interval=20.0
+        app,
+        host=settings.host,
+        port=bound_port,
+        log_level=settings.log_level,
+        ws_ping_interval=20.0,
+        ws_max_size=settings.max_body_bytes,  # a WebSocket message is capped like a body
     )
     uvicorn.Server(server_config).run(sockets=[sock])

@@ -290,3 +290,22 @@ def test_limits_are_settings(tmp_path: Path) -> None:
     s = load_settings(None, data_dir=str(tmp_path))
     assert (s.max_body_bytes, s.max_upload_bytes, s.max_measurement_rows) == (65_536, 20 * MB, 250_000)
     assert (s.heavy_workers, s.heavy_queue, s.heavy_per_key, s.bad_key_limit) == (1, 4, 2, 10)
+
+
+async def test_jobs_are_capped(tmp_path: Path) -> None:
+    """Bug: no cap on concurrent work; friction-ID jobs each took a thread without limit."""
+    import threading
+
+    from app.db import Database
+    from app.jobs import JobRunner
+
+    release = threading.Event()
+    runner = JobRunner(Database(tmp_path / "jobs.sqlite3"), max_running=2)
+    ids = [runner.start("wait", {}, lambda progress, cancel: {"ok": release.wait(10)}) for _ in range(2)]
+    with pytest.raises(TooManyRequests, match="max_running_jobs"):
+        runner.start("wait", {}, lambda progress, cancel: {})
+    release.set()
+    for job_id in ids:
+        await runner.wait(job_id)
+    runner.start("wait", {}, lambda progress, cancel: {})  # room again
+    await runner.shutdown()
