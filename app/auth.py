@@ -13,7 +13,6 @@ import hashlib
 import hmac
 import os
 import secrets
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
@@ -110,20 +109,35 @@ def ensure_admin_key(db: Database, key_path: Path) -> str | None:
 _header = APIKeyHeader(name=KEY_HEADER, auto_error=False, description="API key (see docs/console.md)")
 
 
-def require(role: Role) -> Callable[..., Principal]:
-    """A FastAPI dependency: the caller's principal, or 401/403."""
+class RequireRole:
+    """A FastAPI dependency: the caller's principal, or 401/403.
 
-    def dependency(request: Request, key: str | None = Depends(_header)) -> Principal:
-        who = lookup(request.app.state.db, key)
-        if who is None:
-            detail = "missing API key" if not key else "unknown or revoked API key"
-            raise Unauthorized(f"{detail} (header {KEY_HEADER})")
-        if who.role < role:
-            raise Forbidden(f"role {who.role.name} may not do this; needs {role.name}")
-        return who
+    ``role`` is readable, so the request guard (app/guard.py) refuses a request before its body
+    is read; this check stays as the route's own.
+    """
 
-    dependency.__name__ = f"require_{role.name}"
-    return dependency
+    def __init__(self, role: Role) -> None:
+        self.role = role
+        self.__name__ = f"require_{role.name}"
+
+    def __call__(self, request: Request, key: str | None = Depends(_header)) -> Principal:
+        return authorize(request.app.state.db, key, self.role)
+
+
+def authorize(db: Database, key: str | None, role: Role) -> Principal:
+    """The principal of ``key`` if it may act as ``role``; Unauthorized (401) or Forbidden (403)."""
+    who = lookup(db, key)
+    if who is None:
+        detail = "missing API key" if not key else "unknown or revoked API key"
+        raise Unauthorized(f"{detail} (header {KEY_HEADER})")
+    if who.role < role:
+        raise Forbidden(f"role {who.role.name} may not do this; needs {role.name}")
+    return who
+
+
+def require(role: Role) -> RequireRole:
+    """The dependency that lets ``role`` and above through."""
+    return RequireRole(role)
 
 
 def websocket_principal(ws: WebSocket, key: str | None) -> Principal | None:

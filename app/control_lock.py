@@ -65,6 +65,13 @@ class ControlLock:
         self._holder = None
         return True
 
+    def release_key(self, key_id: int) -> bool:
+        """Free control if the key ``key_id`` holds it (the key was revoked); True when it did."""
+        if self._holder is None or self._holder.key_id != key_id:
+            return False
+        self._holder = None
+        return True
+
     def describe(self) -> dict[str, object] | None:
         """JSON view for status: holder name and seconds held."""
         h = self.holder()

@@ -184,6 +184,11 @@ class Database:
         row = self._one("SELECT * FROM measurements WHERE id = ?", (mid,))
         return dict(row) if row else None
 
+    def get_measurement_meta(self, mid: int) -> dict[str, Any] | None:
+        """A measurement's record without its CSV text."""
+        row = self._one("SELECT id, name, axis, n, dt_s, created_s FROM measurements WHERE id = ?", (mid,))
+        return dict(row) if row else None
+
     def delete_measurement(self, mid: int) -> bool:
         with self._tx() as c:
             return c.execute("DELETE FROM measurements WHERE id = ?", (mid,)).rowcount > 0

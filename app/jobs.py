@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from app.db import Database
-from app.errors import NotFound
+from app.errors import NotFound, TooManyRequests
 from tracker.errors import JobCancelled, TrackerError
 
 log = logging.getLogger("app.jobs")
@@ -49,13 +49,21 @@ class Progress:
 class JobRunner:
     """Starts jobs in worker threads and keeps their cancel tokens."""
 
-    def __init__(self, db: Database) -> None:
+    def __init__(self, db: Database, max_running: int = 2) -> None:
         self.db = db
+        self.max_running = max_running
         self._tokens: dict[int, CancelToken] = {}
         self._tasks: dict[int, asyncio.Task[None]] = {}
 
     def start(self, kind: str, params: dict[str, Any], fn: JobFn) -> int:
-        """Record the job and start it; returns its id."""
+        """Record the job and start it; returns its id. TooManyRequests (429) when
+        ``max_running`` jobs are already running."""
+        if len(self._tasks) >= self.max_running:
+            raise TooManyRequests(
+                f"{len(self._tasks)} jobs are running (cap {self.max_running}, setting max_running_jobs); "
+                "wait for one to finish or cancel it",
+                retry_after_s=5.0,
+            )
         job_id = self.db.add_job(kind, params)
         token = CancelToken()
         self._tokens[job_id] = token

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import socket
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -10,14 +11,18 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse
+from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 from starlette.requests import Request
 from starlette.responses import Response
 
 from app import errors
+from app.auth import Role, lookup
+from app.guard import RequestGuard
 from app.routes import ALL_ROUTERS
 from app.service import Service
 from app.settings import Settings, load_settings
+from tracker.errors import ConfigError
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 API_PREFIX = "/api/v1"
@@ -27,14 +32,20 @@ REST and WebSocket API of the 3DAT console: a pan/tilt camera steered toward who
 
 Send your API key in the `X-API-Key` header. Roles: **viewer** (read) < **operator** (tracking,
 pointing, presets) < **engineer** (gains, workbench, jobs, practice rig) < **admin** (keys).
-Angles are degrees. Errors: 401/403 auth, 404 unknown axis or resource, 409 manual control held by
-someone else, 422 out of range (the body names the limit) or unsafe gains (with the margins),
-400 malformed data (the body names the line and column), 503 driver fault.
+Angles are degrees. Errors are JSON `{"detail": str, "error": kind, ...}`: 401/403 auth, 404
+unknown axis or resource, 409 manual control held by someone else, 422 out of range (the body
+names the limit), unsafe gains (with the margins) or an invalid body (`errors` lists the first
+problems), 400 malformed data (the body names the line and column), 413 body, upload or
+measurement over its cap (the body names the setting), 429 too many bad keys from one address or
+too much heavy work at once (with `Retry-After`), 503 driver fault.
 """
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
-    """The console application for ``settings`` (defaults: simulated room and rig, ./data)."""
+def create_app(settings: Settings | None = None, banner_port: int | None = None) -> FastAPI:
+    """The console application for ``settings`` (defaults: simulated room and rig, ./data).
+
+    With ``banner_port`` (the port the server bound) the start banner is printed once started.
+    """
     settings = settings or load_settings()
 
     @asynccontextmanager
@@ -43,6 +54,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.svc = svc
         app.state.db = svc.db
         await svc.start()
+        if banner_port is not None:
+            print("\n".join(banner_lines(settings, svc, banner_port)), flush=True)
         try:
             yield
         finally:
@@ -60,6 +73,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     errors.install(app)
     for router in ALL_ROUTERS:
         app.include_router(router, prefix=API_PREFIX)
+    api_routes = [r for router in ALL_ROUTERS for r in router.routes if isinstance(r, APIRoute)]
+    # Inside security_headers below (the last added is outermost).
+    app.add_middleware(RequestGuard, prefix=API_PREFIX, routes=api_routes)
 
     @app.middleware("http")
     async def security_headers(request: Request, call_next: object) -> Response:
@@ -92,12 +108,58 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
+def banner_lines(settings: Settings, svc: Service, port: int) -> list[str]:
+    """What the start banner says: the console's address on the port bound, where the first
+    admin key is (only while that key still works), the 3D view on the port it bound."""
+    shown_host = "127.0.0.1" if settings.host in {"0.0.0.0", "::"} else settings.host
+    lines = [f"3DAT console: http://{shown_host}:{port}/  (API docs: /api/docs)"]
+    if first_admin_key_valid(svc, settings.admin_key_path):
+        where = settings.admin_key_path.resolve()
+        lines.append(f"3DAT console: sign in with an API key; the first admin key is in {where}")
+    else:
+        lines.append("3DAT console: sign in with an API key (an admin creates keys on the Keys page)")
+    if svc.viewer is not None:
+        lines.append(
+            f"3DAT console: 3D view on http://{svc.viewer.host}:{svc.viewer.port}/ "
+            "(loopback only by default; it has no authentication)"
+        )
+    elif settings.viewer_enabled:
+        lines.append("3DAT console: the 3D view did not start (see the log)")
+    return lines
+
+
+def first_admin_key_valid(svc: Service, key_path: Path) -> bool:
+    """True when ``key_path`` holds an admin key that is neither unknown nor revoked."""
+    try:
+        key = key_path.read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        return False
+    who = lookup(svc.db, key)
+    return who is not None and who.role == Role.admin
+
+
+def bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on ``host``:``port`` (0 picks a free port); ConfigError when taken."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise ConfigError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    sock.listen(2048)  # connections queue from now on, so the banner's address answers at once
+    sock.set_inheritable(True)
+    return sock
+
+
 def run_server(
     host: str | None = None, port: int | None = None, config: str | None = None, rig_config: str | None = None
 ) -> None:
     """Start the console with uvicorn (``tracker serve``); blocks until interrupted.
 
     Command-line values (``host``, ``port``, ``rig_config``) beat the environment and the file.
+    The socket is bound first, so the banner prints the port actually bound (``port = 0`` too).
     """
     import uvicorn
 
@@ -108,25 +170,15 @@ def run_server(
     logging.basicConfig(
         level=settings.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
-    shown_host = "127.0.0.1" if settings.host in {"0.0.0.0", "::"} else settings.host
-    print(f"3DAT console: http://{shown_host}:{settings.port}/  (API docs: /api/docs)", flush=True)
-    if settings.admin_key_path.exists():
-        print(
-            "3DAT console: sign in with an API key; the first admin key is in "
-            f"{settings.admin_key_path.resolve()}",
-            flush=True,
-        )
-    if settings.viewer_enabled:
-        print(
-            f"3DAT console: 3D view on http://{settings.viewer_host}:{settings.viewer_port}/ "
-            "(loopback only by "
-            "default; it has no authentication)",
-            flush=True,
-        )
-    uvicorn.run(
-        create_app(settings),
+    sock = bind(settings.host, settings.port)
+    bound_port = int(sock.getsockname()[1])
+    app = create_app(settings, banner_port=bound_port)
+    server_config = uvicorn.Config(
+        app,
         host=settings.host,
-        port=settings.port,
+        port=bound_port,
         log_level=settings.log_level,
         ws_ping_interval=20.0,
+        ws_max_size=settings.max_body_bytes,  # a WebSocket message is capped like a body
     )
+    uvicorn.Server(server_config).run(sockets=[sock])

@@ -10,7 +10,6 @@ import numpy as np
 from app.db import Database
 from app.errors import NotFound
 from tracker.plant.model import AxisModel
-from tracker.workbench.data import Measurement, parse_log
 
 MAX_PLOT_POINTS = 1500
 T = TypeVar("T")
@@ -30,14 +29,6 @@ def model_from_json(data: dict[str, Any]) -> AxisModel:
     """The stored model back (parameters as stored, not reset to defaults)."""
     params = {str(k): float(v) for k, v in data["params"].items()}
     return AxisModel.create(float(data["gain_nm_per_v"]), params, tuple(data["effects"]), params)
-
-
-def load_measurement(db: Database, measurement_id: int) -> tuple[dict[str, Any], Measurement]:
-    """The stored record and the parsed measurement; NotFound when unknown."""
-    rec = db.get_measurement(measurement_id)
-    if rec is None:
-        raise NotFound(f"no measurement {measurement_id}")
-    return rec, parse_log(rec["csv"], rec["name"])
 
 
 def load_version(

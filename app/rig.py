@@ -124,31 +124,6 @@ def check_angle(axis: str, angle_deg: float, limit_deg: float) -> None:
         raise ConfigError(f"{axis} angle {angle_deg:g}° is outside the soft limit ±{limit_deg:g}°")
 
 
-def step_response(
-    engine: Any, axis: str, gains: Any, amplitude_rad: float, duration_s: float, shaped: bool = True
-) -> dict[str, Any]:
-    """Predicted response of ``axis`` to a step of ``amplitude_rad`` with ``gains``: the engine's
-    full nonlinear loop (observer, Coulomb, the ±10 V clip) on the axis model, through the
-    engine's trajectory shaping (what the rig does) or without it (the raw step, where the
-    gains show).
-
-    Returns t_s, angle_rad (shape (n,)), rise_time_s, overshoot_percent, settling_time_s,
-    peak_command_v.
-    """
-    from tracker.control.design import predicted_step_response
-
-    shaping = (getattr(getattr(engine, "config", None), "shaping", None) or {}).get(axis) if shaped else None
-    res = predicted_step_response(axis_model(engine, axis), gains, amplitude_rad, duration_s, shaping=shaping)
-    return {
-        "t_s": np.asarray(res.t_s, dtype=float),
-        "angle_rad": np.asarray(res.theta_rad, dtype=float),
-        "rise_time_s": res.rise_time_s,
-        "overshoot_percent": res.overshoot_percent,
-        "settling_time_s": res.settling_time_s,
-        "peak_command_v": res.peak_command_v,
-    }
-
-
 def random_practice_model(axis: str, seed: int) -> Any:
     """The seed's model of ``axis`` with one effect, picked by ``seed``, at random physical values."""
     from tracker.workbench.experiments import HIDDEN_RANGES, random_hidden_model

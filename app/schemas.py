@@ -1,17 +1,28 @@
-"""Request and response bodies of the REST API (pydantic; angles in degrees, rates in deg/s)."""
+"""Request and response bodies of the REST API (pydantic; angles in degrees, rates in deg/s).
+
+Request bodies are strict: numbers are finite JSON numbers (no NaN, Infinity or 1e999, no
+``true`` for 1, no strings), ids fit SQLite's integers (1 .. 2⁶³−1), unknown fields are refused.
+"""
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
+from fastapi import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 Axis = Literal["pan", "tilt"]
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9 _.\-]{0,63}$"
+MAX_ID = 2**63 - 1  # SQLite's largest integer
+
+Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+Id = Annotated[int, Field(strict=True, ge=1, le=MAX_ID)]
+RowId = Annotated[int, Path(ge=1, le=MAX_ID, description="a stored id (1 .. 2^63-1)")]
+GainName = Annotated[str, Field(min_length=1, max_length=64)]
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class StatusOut(BaseModel):
@@ -45,8 +56,8 @@ class TrackingOut(BaseModel):
 
 
 class PointingIn(Strict):
-    pan_deg: float = Field(allow_inf_nan=False)
-    tilt_deg: float = Field(allow_inf_nan=False)
+    pan_deg: Finite
+    tilt_deg: Finite
 
 
 class PointingOut(BaseModel):
@@ -57,7 +68,7 @@ class PointingOut(BaseModel):
 
 
 class JogIn(Strict):
-    rate_deg_s: float = Field(allow_inf_nan=False, description="signed rate; 0 stops")
+    rate_deg_s: Finite = Field(description="signed rate; 0 stops")
 
 
 class JogOut(BaseModel):
@@ -67,10 +78,8 @@ class JogOut(BaseModel):
 
 
 class PresetIn(Strict):
-    pan_deg: float | None = Field(
-        None, allow_inf_nan=False, description="default: where the camera points now"
-    )
-    tilt_deg: float | None = Field(None, allow_inf_nan=False)
+    pan_deg: Finite | None = Field(None, description="default: where the camera points now")
+    tilt_deg: Finite | None = None
 
 
 class PresetOut(BaseModel):
@@ -87,18 +96,20 @@ class GainsOut(BaseModel):
 
 
 class GainsIn(Strict):
-    gains: dict[str, float] = Field(description="fields of the axis gain set to change (others kept)")
+    gains: dict[GainName, Finite] = Field(
+        max_length=32, description="fields of the axis gain set to change (others kept)"
+    )
 
 
 class StepPreviewIn(Strict):
-    gains: dict[str, float] = Field(default_factory=dict)
-    amplitude_deg: float = Field(30.0, gt=0, le=180, allow_inf_nan=False)
-    duration_s: float = Field(1.5, gt=0, le=10, allow_inf_nan=False)
+    gains: dict[GainName, Finite] = Field(default_factory=dict, max_length=32)
+    amplitude_deg: Finite = Field(30.0, gt=0, le=180)
+    duration_s: Finite = Field(1.5, gt=0, le=10)
     shaped: bool = Field(True, description="through the engine's rate/acceleration shaping (as on the rig)")
 
 
 class DesignModelIn(Strict):
-    version_id: int = Field(description="a workbench model version of this axis")
+    version_id: Id = Field(description="a workbench model version of this axis")
 
 
 class KeyIn(Strict):
@@ -116,23 +127,23 @@ class KeyOut(BaseModel):
 
 
 class CompareIn(Strict):
-    version_id: int | None = None
-    horizon_s: float | None = Field(None, gt=0, le=60, allow_inf_nan=False)
+    version_id: Id | None = None
+    horizon_s: Finite | None = Field(None, gt=0, le=60)
     mode: Literal["k_step", "free"] = "k_step"
 
 
 class DiagnoseIn(Strict):
-    version_id: int | None = None
+    version_id: Id | None = None
 
 
 class FitIn(Strict):
-    version_id: int | None = None
-    free: list[str] | None = None
+    version_id: Id | None = None
+    free: list[Annotated[str, Field(min_length=1, max_length=64)]] | None = Field(None, max_length=64)
 
 
 class AddEffectIn(Strict):
     effect: str = Field(min_length=1, max_length=64)
-    version_id: int | None = None
+    version_id: Id | None = None
 
 
 class FrictionJobIn(Strict):
@@ -142,9 +153,9 @@ class FrictionJobIn(Strict):
 
 class PracticeNewIn(Strict):
     axis: Axis = "pan"
-    seed: int | None = Field(None, ge=0)
+    seed: int | None = Field(None, ge=0, le=2**32 - 1)
 
 
 class ExperimentIn(Strict):
     kind: Literal["steps", "sine_sweep", "slow_ramps", "mixed"] = "mixed"
-    duration_s: float = Field(20.0, ge=2.0, le=120.0, allow_inf_nan=False)
+    duration_s: Finite = Field(20.0, ge=2.0, le=120.0)

@@ -14,13 +14,15 @@ from typing import Annotated, Any
 
 from fastapi import Depends, Request
 
-from app import rig
+from app import heavy, rig
 from app.auth import ensure_admin_key
+from app.backoff import BadKeyBackoff
 from app.control_lock import ControlLock
 from app.db import Database
 from app.jobs import JobRunner
 from app.settings import Settings
 from app.telemetry import TelemetryHub
+from app.work import WorkPool
 
 log = logging.getLogger("app")
 
@@ -35,7 +37,11 @@ class Service:
         self.db.fail_unfinished_jobs()
         self.lock = ControlLock(ttl_s=settings.control_lock_ttl_s)
         self.hub = TelemetryHub(rate_hz=settings.telemetry_rate_hz)
-        self.jobs = JobRunner(self.db)
+        self.jobs = JobRunner(self.db, max_running=settings.max_running_jobs)
+        self.work = WorkPool(settings.heavy_workers, settings.heavy_queue, settings.heavy_per_key)
+        self.bad_keys = BadKeyBackoff(
+            settings.bad_key_limit, settings.bad_key_window_s, settings.bad_key_max_block_s
+        )
         self.engine: Any = None
         self.audio: Any = None
         self.viewer: Any = None
@@ -46,6 +52,7 @@ class Service:
         """Build and start the engine, the telemetry hub, the audio target source and the 3D view."""
         s = self.settings
         self.engine = rig.build_engine(s)
+        self.work.warm(heavy.warm_up)
         self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
         self.hub.start(self.engine)
         if s.audio_enabled:
@@ -69,7 +76,14 @@ class Service:
         except Exception:
             log.exception("the engine loop stopped with an error")
 
+    def revoke_key(self, key_id: int) -> None:
+        """Revoke a key everywhere at once: stored, its WebSockets closed, its manual control freed."""
+        self.db.revoke_key(key_id)
+        self.hub.disconnect_key(key_id, "API key revoked")
+        self.lock.release_key(key_id)
+
     async def stop(self) -> None:
+        self.work.close()
         await self.jobs.shutdown()
         if self.viewer is not None:
             await self.viewer.stop()

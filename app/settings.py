@@ -68,7 +68,26 @@ class Settings(BaseSettings):
         0.25, ge=0.0, le=40.0,
         description="the soft-limit guard's line sits this far inside the limits (a belt the model "
                     "does not know needs its twist at full torque: docs/control.md)")
-    max_upload_bytes: int = Field(50_000_000, gt=0)
+    # Limits: what one request may cost the service (docs/console.md, "Limits").
+    max_body_bytes: int = Field(
+        65_536, gt=0, description="a JSON request body over this is refused (413) before it is read; "
+        "the largest the API takes is a few kB, and an invalid one costs the event loop ~1 ms per kB")
+    max_upload_bytes: int = Field(
+        20_000_000, gt=0, description="a measurement upload over this is refused (413) before it is read")
+    max_measurement_rows: int = Field(
+        250_000, gt=0, description="a measurement with more data rows is refused (413): 250 s at 1 kHz")
+    heavy_workers: int = Field(
+        1, ge=1, le=32, description="worker processes for heavy work (workbench, simulations)")
+    heavy_queue: int = Field(
+        4, ge=0, le=1000, description="heavy requests that may wait for a worker; more get 429")
+    heavy_per_key: int = Field(
+        2, ge=1, le=100, description="heavy requests one key may have running or waiting; more get 429")
+    max_running_jobs: int = Field(2, ge=1, le=32, description="jobs (friction-ID) at once; more get 429")
+    bad_key_limit: int = Field(
+        10, ge=1, description="bad keys one address may send within bad_key_window_s before 429")
+    bad_key_window_s: float = Field(60.0, gt=0.0)
+    bad_key_max_block_s: float = Field(
+        600.0, ge=1.0, description="each block doubles from 5 s up to this while the bad keys go on")
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @field_validator("audio_input")

@@ -46,12 +46,15 @@ def frame_of(s: Snapshot) -> dict[str, Any]:
 
 
 class Subscription:
-    """One client's bounded queue of frames."""
+    """One client's bounded queue of frames; ``ended`` is set (with ``end_reason``) to close it."""
 
-    def __init__(self, hub: TelemetryHub, maxsize: int) -> None:
+    def __init__(self, hub: TelemetryHub, maxsize: int, key_id: int | None = None) -> None:
         self._hub = hub
+        self.key_id = key_id
         self.queue: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=maxsize)
         self.dropped = 0
+        self.ended = asyncio.Event()
+        self.end_reason = ""
 
     def offer(self, frame: dict[str, Any]) -> None:
         if self.queue.full():
@@ -84,11 +87,20 @@ class TelemetryHub:
     def clients(self) -> int:
         return len(self._subs)
 
-    def subscribe(self, maxsize: int = 256) -> Subscription:
-        """A new subscriber; call ``close()`` when done."""
-        sub = Subscription(self, maxsize)
+    def subscribe(self, maxsize: int = 256, key_id: int | None = None) -> Subscription:
+        """A new subscriber (for the API key ``key_id``); call ``close()`` when done."""
+        sub = Subscription(self, maxsize, key_id)
         self._subs.add(sub)
         return sub
+
+    def disconnect_key(self, key_id: int, reason: str) -> int:
+        """End every subscription of ``key_id`` (its key was revoked); how many there were."""
+        subs = [s for s in self._subs if s.key_id == key_id]
+        for sub in subs:
+            sub.end_reason = reason
+            sub.ended.set()
+            sub.close()
+        return len(subs)
 
     def publish(self, snap: Snapshot) -> None:
         """Take one engine snapshot; emit a frame when a frame period of engine time has passed."""

@@ -1,41 +1,30 @@
 """Controller gains per axis: read, preview (margins and predicted step response), apply.
 
 A gain set that makes the loop unstable or puts the phase margin under the configured floor is
-refused with 422 and the computed margins; nothing changes on the rig.
+refused with 422 and the computed margins; nothing changes on the rig. Margins and predicted
+steps are computed in the worker processes (app/heavy.py), not on the engine's event loop; a set
+the design cannot evaluate (a gain of 1e308 overflows it) is refused with 422 naming the fields.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
+import numpy as np
 from fastapi import APIRouter
 
-from app import rig
-from app.auth import Engineer, Viewer
+from app import heavy, rig
+from app.auth import Engineer, Principal, Viewer
 from app.errors import NotFound, Refused, check_axis
-from app.modelio import model_from_json
+from app.modelio import model_from_json, model_to_json
 from app.schemas import DesignModelIn, GainsIn, GainsOut, StepPreviewIn
 from app.service import Service, Svc
-from tracker.errors import ConfigError
+from tracker.errors import ConfigError, TrackerError
 
 router = APIRouter(tags=["gains"])
-
-
-def _plain(value: Any) -> Any:  # noqa: ANN401 - any result object in, JSON-ready value out
-    """JSON-ready copy of a result object (dataclass, numpy values, nested containers)."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def candidate_gains(svc: Service, axis: str, changes: dict[str, float]) -> Any:
@@ -52,34 +41,29 @@ def candidate_gains(svc: Service, axis: str, changes: dict[str, float]) -> Any:
     return dataclasses.replace(current, **changes)
 
 
-def margins_of(svc: Service, axis: str, gains: Any) -> dict[str, Any]:
+@contextmanager
+def evaluable(axis: str, changes: dict[str, float]) -> Iterator[None]:
+    """Turn the design's numerical failures on absurd gains into 422 naming the changed fields."""
+    try:
+        yield
+    except TrackerError:
+        raise
+    except (np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
+        named = ", ".join(f"{k}={v:g}" for k, v in sorted(changes.items())) or "the current gains"
+        raise Refused(
+            f"gains {named} for {axis} cannot be evaluated ({type(exc).__name__}: {exc})",
+            fields=sorted(changes),
+        ) from None
+
+
+def _model_json(svc: Service, axis: str) -> dict[str, Any]:
+    return model_to_json(rig.axis_model(svc.engine, axis), axis)
+
+
+async def margins_of(svc: Service, who: Principal, axis: str, gains: Any) -> dict[str, Any]:  # noqa: ANN401
     """Phase/gain margins and stability of ``gains`` on the axis model (DesignReport as JSON)."""
-    from tracker.control.design import check_gains
-
-    report = check_gains(rig.axis_model(svc.engine, axis), gains, svc.settings.min_phase_margin_deg)
-    out: dict[str, Any] = _plain(report)
     floor = svc.settings.min_phase_margin_deg
-    pm = out.get("phase_margin_deg")
-    out["acceptable"] = bool(out.get("stable")) and pm is not None and pm >= floor
-    return out
-
-
-def step_of(
-    svc: Service, axis: str, gains: Any, amplitude_deg: float, duration_s: float, shaped: bool = True
-) -> dict[str, Any]:
-    """Predicted step response, as {"t_s": [...], "angle_deg": [...], figures} (decimated)."""
-    res = rig.step_response(svc.engine, axis, gains, math.radians(amplitude_deg), duration_s, shaped)
-    t, y = res.pop("t_s"), res.pop("angle_rad")
-    step = max(1, len(t) // 400)
-    out: dict[str, Any] = _plain(
-        {
-            **res,
-            "t_s": t[::step].round(5),
-            "angle_deg": (y[::step] * 180.0 / math.pi).round(4),
-            "amplitude_deg": amplitude_deg,
-        }
-    )
-    return out
+    return await svc.work.run(who, heavy.gain_margins, _model_json(svc, axis), gains, floor)
 
 
 @router.get(
@@ -87,7 +71,7 @@ def step_of(
 )
 async def get_gains(axis: str, svc: Svc, who: Viewer) -> GainsOut:
     check_axis(axis)
-    return _gains_out(svc, axis)
+    return await _gains_out(svc, who, axis)
 
 
 @router.post(
@@ -98,12 +82,16 @@ async def preview_gains(axis: str, body: StepPreviewIn, svc: Svc, who: Viewer) -
     check_axis(axis)
     current = svc.engine.gains(axis)
     cand = candidate_gains(svc, axis, body.gains)
+    shaping = (getattr(svc.engine.config, "shaping", None) or {}).get(axis) if body.shaped else None
+    with evaluable(axis, body.gains):
+        out = await svc.work.run(
+            who, heavy.gain_preview, _model_json(svc, axis), current, cand,
+            body.amplitude_deg, body.duration_s, shaping, svc.settings.min_phase_margin_deg,
+        )
     return {
         "axis": axis,
-        "gains": _plain(cand),
-        "margins": margins_of(svc, axis, cand),
-        "step": step_of(svc, axis, cand, body.amplitude_deg, body.duration_s, body.shaped),
-        "current_step": step_of(svc, axis, current, body.amplitude_deg, body.duration_s, body.shaped),
+        "gains": heavy.result_json(cand),
+        **out,
         "min_phase_margin_deg": svc.settings.min_phase_margin_deg,
     }
 
@@ -114,7 +102,8 @@ async def preview_gains(axis: str, body: StepPreviewIn, svc: Svc, who: Viewer) -
 async def put_gains(axis: str, body: GainsIn, svc: Svc, who: Engineer) -> GainsOut:
     check_axis(axis)
     cand = candidate_gains(svc, axis, body.gains)
-    margins = margins_of(svc, axis, cand)
+    with evaluable(axis, body.gains):
+        margins = await margins_of(svc, who, axis, cand)
     floor = svc.settings.min_phase_margin_deg
     if not margins["acceptable"]:
         why = "unstable" if not margins.get("stable") else f"phase margin under the {floor:g}° floor"
@@ -125,13 +114,7 @@ async def put_gains(axis: str, body: GainsIn, svc: Svc, who: Engineer) -> GainsO
             min_phase_margin_deg=floor,
         )
     svc.engine.set_gains(axis, cand)
-    gains = svc.engine.gains(axis)
-    return GainsOut(
-        axis=axis,  # type: ignore[arg-type]  # checked by check_axis
-        gains=_plain(gains) | {"type": type(gains).__name__},
-        margins=margins_of(svc, axis, gains),
-        min_phase_margin_deg=floor,
-    )
+    return await _gains_out(svc, who, axis)
 
 
 @router.put(
@@ -150,15 +133,15 @@ async def put_model(axis: str, body: DesignModelIn, svc: Svc, who: Engineer) -> 
         svc.engine.set_model(axis, model_from_json(version["model"]))
     except ConfigError as exc:
         raise Refused(str(exc)) from None
-    return _gains_out(svc, axis)
+    return await _gains_out(svc, who, axis)
 
 
-def _gains_out(svc: Service, axis: str) -> GainsOut:
+async def _gains_out(svc: Service, who: Principal, axis: str) -> GainsOut:
     """The axis's current gains, their margins and the configured floor."""
     gains = svc.engine.gains(axis)
     return GainsOut(
         axis=axis,  # type: ignore[arg-type]  # checked by check_axis
-        gains=_plain(gains) | {"type": type(gains).__name__},
-        margins=margins_of(svc, axis, gains),
+        gains=heavy.result_json(gains) | {"type": type(gains).__name__},
+        margins=await margins_of(svc, who, axis, gains),
         min_phase_margin_deg=svc.settings.min_phase_margin_deg,
     )

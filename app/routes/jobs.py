@@ -18,7 +18,7 @@ from app.errors import NotFound
 from app.jobs import CancelToken, Progress
 from app.modelio import plain
 from app.routes.practice import practice_model, practice_state
-from app.schemas import FrictionJobIn
+from app.schemas import FrictionJobIn, RowId
 from app.service import Svc
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -46,7 +46,7 @@ async def list_jobs(svc: Svc, who: Viewer) -> list[dict[str, Any]]:
 
 
 @router.get("/{job_id}", summary="A job: state, progress, message and (when done) its result")
-async def get_job(job_id: int, svc: Svc, who: Viewer) -> dict[str, Any]:
+async def get_job(job_id: RowId, svc: Svc, who: Viewer) -> dict[str, Any]:
     job = svc.db.get_job(job_id)
     if job is None:
         raise NotFound(f"no job {job_id}")
@@ -54,5 +54,5 @@ async def get_job(job_id: int, svc: Svc, who: Viewer) -> dict[str, Any]:
 
 
 @router.post("/{job_id}/cancel", summary="Ask a running job to stop")
-async def cancel_job(job_id: int, svc: Svc, who: Engineer) -> dict[str, Any]:
+async def cancel_job(job_id: RowId, svc: Svc, who: Engineer) -> dict[str, Any]:
     return svc.jobs.cancel(job_id)

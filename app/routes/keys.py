@@ -1,4 +1,4 @@
-"""API keys (admin): list, create (the key is shown once), revoke; GET /whoami for any key."""
+"""API keys (admin): list, create (the key is shown once), revoke (live sessions too); GET /whoami."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from fastapi import APIRouter
 
 from app.auth import Admin, Role, Viewer, create_key
 from app.errors import Conflict, NotFound
-from app.schemas import KeyIn, KeyOut
+from app.schemas import KeyIn, KeyOut, RowId
 from app.service import Svc
 
 router = APIRouter(tags=["keys"])
@@ -40,12 +40,16 @@ async def post_key(body: KeyIn, svc: Svc, who: Admin) -> KeyOut:
     return KeyOut(id=key_id, name=body.name, role=body.role, prefix=key[:9], revoked=False, key=key)
 
 
-@router.delete("/keys/{key_id}", status_code=204, summary="Revoke a key")
-async def delete_key(key_id: int, svc: Svc, who: Admin) -> None:
+@router.delete(
+    "/keys/{key_id}",
+    status_code=204,
+    summary="Revoke a key (its telemetry WebSockets close with 4401, its manual control is freed)",
+)
+async def delete_key(key_id: RowId, svc: Svc, who: Admin) -> None:
     keys = {k.id: k for k in svc.db.list_keys()}
     if key_id not in keys:
         raise NotFound(f"no key {key_id}")
     admins = [k for k in keys.values() if k.role == "admin" and not k.revoked]
     if keys[key_id].role == "admin" and [k.id for k in admins] == [key_id]:
         raise Conflict("this is the last active admin key; create another admin key before revoking it")
-    svc.db.revoke_key(key_id)
+    svc.revoke_key(key_id)

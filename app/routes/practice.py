@@ -7,23 +7,21 @@ friction-ID job, then reveal the truth and set the fitted parameters against it.
 
 from __future__ import annotations
 
-import asyncio
 import secrets
 from typing import Any
 
 from fastapi import APIRouter
 
-from app import rig
+from app import heavy, rig
 from app.auth import Engineer, Viewer
 from app.db import Database
 from app.errors import NotFound
-from app.experiments import EXPERIMENTS, record_experiment
+from app.experiments import EXPERIMENTS
 from app.modelio import model_from_json, model_to_json, plain
 from app.routes.workbench import store_measurement
 from app.schemas import ExperimentIn, PracticeNewIn
 from app.service import Svc
 from tracker.plant.model import AxisModel
-from tracker.workbench.data import format_log
 
 router = APIRouter(prefix="/practice", tags=["practice"])
 KV_KEY = "practice"
@@ -82,13 +80,13 @@ async def run_experiment(body: ExperimentIn, svc: Svc, who: Engineer) -> dict[st
     st = practice_state(svc.db)
     if st is None:
         raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
-    truth = model_from_json(st["truth"])
     run_no = len(st["measurements"]) + 1
-    meas = await asyncio.to_thread(
-        record_experiment, truth, st["axis"], body.kind, body.duration_s, st["seed"] + run_no
-    )
     label = f"practice {st['axis']} #{run_no}: {body.kind} {body.duration_s:g} s"
-    rec = await asyncio.to_thread(store_measurement, svc.db, label, st["axis"], format_log(meas))
+    seed = st["seed"] + run_no
+    run = await svc.work.run(
+        who, heavy.practice_run, st["truth"], st["axis"], body.kind, body.duration_s, seed, label
+    )
+    rec = await store_measurement(svc, who, label, st["axis"], run.pop("csv"), fitted=run)
     st["measurements"].append(rec["id"])
     svc.db.put_value(KV_KEY, st)
     return rec

@@ -4,7 +4,9 @@ Authenticate with the ``X-API-Key`` header, or (browsers cannot set WebSocket he
 ``{"key": "..."}`` as the first message within 5 s. The server answers ``{"type": "hello", ...}``
 and then streams ``{"type": "frame", "t_s", "pan_deg", "tilt_deg", "pan_target_deg",
 "tilt_target_deg", "pan_u_v", "tilt_u_v", "mode", "tracking", "source", "estimate_azimuth_deg",
-"estimate_elevation_deg"}``. Close codes: 4401 no/unknown key, 4408 no key in time.
+"estimate_elevation_deg"}``. Close codes: 4401 no/unknown key, or the key was revoked while
+streaming (at once, reason "API key revoked"), 4408 no key in time, 4429 too many bad keys from
+this address (the reason says when to retry).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import json
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
-from app.auth import websocket_principal
+from app.auth import KEY_HEADER, Principal, websocket_principal
 
 router = APIRouter(tags=["telemetry"])
 AUTH_TIMEOUT_S = 5.0
@@ -40,19 +42,34 @@ async def _drain_client(ws: WebSocket) -> None:
         await ws.receive_text()
 
 
+async def _authenticate(ws: WebSocket) -> Principal | None:
+    """The client's principal; None after closing the socket with the reason."""
+    key = ws.headers.get(KEY_HEADER) or await _receive_key(ws)
+    who = websocket_principal(ws, key)
+    if who is not None:
+        return who
+    if not key:
+        await ws.close(code=4408, reason="no API key")
+        return None
+    address = ws.client.host if ws.client else "unknown"
+    wait_s = ws.app.state.svc.bad_keys.failed(address)
+    if wait_s > 0:
+        await ws.close(code=4429, reason=f"too many bad API keys; retry in {wait_s:.0f} s")
+    else:
+        await ws.close(code=4401, reason="unknown or revoked API key")
+    return None
+
+
 @router.websocket("/telemetry")
 async def telemetry(ws: WebSocket) -> None:
     await ws.accept()
-    who = websocket_principal(ws, None)
+    who = await _authenticate(ws)
     if who is None:
-        key = await _receive_key(ws)
-        who = websocket_principal(ws, key)
-        if who is None:
-            await ws.close(code=4401 if key else 4408, reason="unknown or missing API key")
-            return
+        return
     svc = ws.app.state.svc
-    sub = svc.hub.subscribe(maxsize=256)
+    sub = svc.hub.subscribe(maxsize=256, key_id=who.key_id)
     reader = asyncio.create_task(_drain_client(ws))
+    ended = asyncio.create_task(sub.ended.wait())
     try:
         await ws.send_json(
             {
@@ -64,15 +81,18 @@ async def telemetry(ws: WebSocket) -> None:
         )
         while True:
             get = asyncio.ensure_future(sub.queue.get())
-            done, _ = await asyncio.wait({get, reader}, return_when=asyncio.FIRST_COMPLETED)
-            if reader in done:
+            done, _ = await asyncio.wait({get, reader, ended}, return_when=asyncio.FIRST_COMPLETED)
+            if reader in done or ended in done:
                 get.cancel()
                 break
             await ws.send_text(json.dumps(get.result(), separators=(",", ":")))
+        if ended.done():
+            await ws.close(code=4401, reason=sub.end_reason)
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
         sub.close()
+        ended.cancel()
         reader.cancel()
         with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError, Exception):
             await reader

@@ -1,6 +1,7 @@
 """The model workbench over HTTP: upload measurements, compare, diagnose, fit, add an effect,
 and the model versions of each measurement with their fits (the same semantics as
-``tracker model ...``). Heavy work runs in a worker thread, never on the event loop.
+``tracker model ...``). The heavy work (app/heavy.py) runs in the worker processes of
+app/work.py, never on the event loop; these routes only read and write the database.
 
 Every measurement starts with version 1, the base model of its axis fitted to it. ``fit`` refits the
 latest version's parameters into a new version; ``add-effect`` adds an effect and refits all
@@ -16,48 +17,16 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, UploadFile
 
-from app.auth import Engineer, Viewer
-from app.db import Database
-from app.errors import check_axis
-from app.modelio import decimate_index, load_measurement, load_version, model_to_json, plain, series_deg
-from app.schemas import AddEffectIn, CompareIn, DiagnoseIn, FitIn
-from app.service import Svc
+from app import heavy
+from app.auth import Engineer, Principal, Viewer
+from app.errors import NotFound, TooLarge, check_axis
+from app.modelio import load_version, plain
+from app.schemas import AddEffectIn, CompareIn, DiagnoseIn, FitIn, RowId
+from app.service import Service, Svc
 from tracker.errors import ConfigError, DataError
 from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, OPTIONAL_EFFECTS, get_effect
-from tracker.plant.model import AxisModel
-from tracker.workbench.compare import compare_model
-from tracker.workbench.data import Measurement, parse_log
 
 router = APIRouter(prefix="/workbench", tags=["workbench"])
-
-
-def _fit_summary(meas: Measurement, model: AxisModel, extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The figures a version keeps: compare fit, RMS error, and the fitter's output when given."""
-    cmp = compare_model(meas, model)
-    out = {
-        "fit_percent": cmp.fit_percent,
-        "fit_percent_increment": cmp.fit_percent_increment,
-        "rms_deg": cmp.rms_deg,
-        "horizon_s": cmp.horizon_s,
-    }
-    out.update(extra or {})
-    return plain(out)
-
-
-def _add_version(
-    db: Database,
-    mid: int,
-    parent: int | None,
-    label: str,
-    model: AxisModel,
-    axis: str,
-    meas: Measurement,
-    extra: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    vid = db.add_version(mid, parent, label, model_to_json(model, axis), _fit_summary(meas, model, extra))
-    v = db.get_version(vid)
-    assert v is not None
-    return v
 
 
 @router.get("/effects", summary="The effects catalogue: names, kinds, parameters with units and bounds")
@@ -92,55 +61,80 @@ async def upload(
     svc: Svc,
     who: Engineer,
     file: Annotated[UploadFile, File()],
-    axis: Annotated[str, Form()] = "pan",
-    name: Annotated[str | None, Form()] = None,
+    axis: Annotated[str, Form(max_length=16)] = "pan",
+    name: Annotated[str | None, Form(max_length=200)] = None,
     gain: Annotated[
         float | None, Form(description="amplifier gain K override (N·m/V, or N/V linear)")
     ] = None,
-    effects: Annotated[str | None, Form(description="effects to start with, comma separated")] = None,
+    effects: Annotated[
+        str | None, Form(max_length=1000, description="effects to start with, comma separated")
+    ] = None,
 ) -> dict[str, Any]:
+    """413 over ``max_upload_bytes`` (before the body is read) or ``max_measurement_rows``."""
     check_axis(axis)
     if gain is not None and not (math.isfinite(gain) and gain > 0):
         raise ConfigError(f"gain must be a positive number (N·m/V, or N/V for a linear axis), got {gain!r}")
     start_effects = tuple(e.strip() for e in (effects or "").split(",") if e.strip())
     for e in start_effects:
         get_effect(e)
-    limit = svc.settings.max_upload_bytes
-    raw = await file.read(limit + 1)
-    if len(raw) > limit:
-        raise DataError(f"{file.filename}: larger than {limit} bytes")
+    raw = await file.read()  # the request guard has capped the body at max_upload_bytes
     label = (name or file.filename or "upload.csv")[:120]
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise DataError(f"{label}: byte {exc.start} is not UTF-8 text; expected a CSV log") from None
-    return await asyncio.to_thread(store_measurement, svc.db, label, axis, text, gain, start_effects)
+    return await store_measurement(svc, who, label, axis, text, gain, start_effects)
 
 
-def store_measurement(
-    db: Database,
+def check_rows(label: str, text: str, max_rows: int) -> None:
+    """TooLarge (413) naming the cap when ``text`` has more than ``max_rows`` data rows."""
+    rows = text.count("\n") + (not text.endswith("\n")) - 1  # lines less the header
+    if rows > max_rows:
+        raise TooLarge(
+            f"{label}: {rows} data rows; a measurement may have at most {max_rows} "
+            "(setting max_measurement_rows)",
+            limit_rows=max_rows,
+            setting="max_measurement_rows",
+        )
+
+
+async def store_measurement(
+    svc: Service,
+    who: Principal,
     label: str,
     axis: str,
     text: str,
     gain_nm_per_v: float | None = None,
     effects: tuple[str, ...] = (),
+    fitted: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Validate, then store a measurement and its first version: the axis' base model (plus
     ``effects``, with K overridden by ``gain_nm_per_v``, as ``--effects``/``--gain`` on the
-    command line) with its parameters fitted. Invalid text or options raise DataError or
-    ConfigError before anything is written."""
-    from tracker.workbench.fit import fit_model
-
-    model = AxisModel.for_axis(axis, effects, gain_nm_per_v=gain_nm_per_v)
-    meas = parse_log(text, label)
-    res = fit_model(meas, model)
-    summary = _fit_summary(meas, res.model, _fitter_extra(res))
-    mid = db.add_measurement(label, axis, text, meas.n, meas.dt_s)
-    vid = db.add_version(mid, None, "base", model_to_json(res.model, axis), summary)
-    rec = db.get_measurement(mid)
+    command line) with its parameters fitted (``fitted``: already done by the caller's worker).
+    Invalid text or options raise DataError or ConfigError before anything is written."""
+    check_rows(label, text, svc.settings.max_measurement_rows)
+    if fitted is None:
+        fitted = await svc.work.run(who, heavy.first_version, label, axis, text, gain_nm_per_v, effects)
+    mid, vid = await asyncio.to_thread(_insert_measurement, svc, label, axis, text, fitted)
+    rec = svc.db.get_measurement(mid)
     assert rec is not None
     rec.pop("csv")
     return {**rec, "first_version_id": vid}
+
+
+def _insert_measurement(
+    svc: Service, label: str, axis: str, text: str, fitted: dict[str, Any]
+) -> tuple[int, int]:
+    mid = svc.db.add_measurement(label, axis, text, fitted["n"], fitted["dt_s"])
+    return mid, svc.db.add_version(mid, None, "base", fitted["model"], fitted["fit"])
+
+
+async def stored_measurement(svc: Service, mid: int) -> dict[str, Any]:
+    """The stored record (with its CSV text, read in a thread: megabytes); NotFound (404) when unknown."""
+    rec = await asyncio.to_thread(svc.db.get_measurement, mid)
+    if rec is None:
+        raise NotFound(f"no measurement {mid}")
+    return rec
 
 
 @router.get("/measurements", summary="Stored measurements")
@@ -149,100 +143,71 @@ async def list_measurements(svc: Svc, who: Viewer) -> list[dict[str, Any]]:
 
 
 @router.get("/measurements/{mid}", summary="A measurement: metadata and decimated series for plots")
-async def get_measurement(mid: int, svc: Svc, who: Viewer) -> dict[str, Any]:
-    rec, meas = await asyncio.to_thread(load_measurement, svc.db, mid)
-    rec.pop("csv")
-    data: dict[str, Any] = series_deg(meas.t_s, theta=meas.theta_rad)
-    data["u_v"] = meas.u_v[decimate_index(meas.n)].round(5).tolist()
-    return {**rec, "series": data}
+async def get_measurement(mid: RowId, svc: Svc, who: Viewer) -> dict[str, Any]:
+    rec = await stored_measurement(svc, mid)
+    series = await svc.work.run(who, heavy.measurement_series, rec.pop("csv"), rec["name"])
+    return {**rec, "series": series}
 
 
 @router.delete("/measurements/{mid}", status_code=204, summary="Delete a measurement and its versions")
-async def delete_measurement(mid: int, svc: Svc, who: Engineer) -> None:
-    load_measurement(svc.db, mid)
-    svc.db.delete_measurement(mid)
+async def delete_measurement(mid: RowId, svc: Svc, who: Engineer) -> None:
+    if not svc.db.delete_measurement(mid):
+        raise NotFound(f"no measurement {mid}")
 
 
-def run_compare(db: Database, mid: int, body: CompareIn) -> dict[str, Any]:
-    _, meas = load_measurement(db, mid)
-    v, model = load_version(db, mid, body.version_id)
-    cmp = compare_model(meas, model, horizon_s=body.horizon_s, mode=body.mode)
-    out = cmp.to_dict(arrays=False)
-    ra = cmp.residuals.to_dict(arrays=True)
-    out["residual_analysis"] = ra
-    out["series"] = series_deg(
-        cmp.t_s, measured=cmp.theta_meas_rad, model=cmp.theta_pred_rad, residual=cmp.residual_rad
-    )
-    out["version_id"] = v["id"]
-    out["version_label"] = v["label"]
-    return plain(out)
+def _with_version(out: dict[str, Any], v: dict[str, Any]) -> dict[str, Any]:
+    return {**out, "version_id": v["id"], "version_label": v["label"]}
 
 
 @router.post("/measurements/{mid}/compare", summary="Compare a model version with the measurement")
-async def compare(mid: int, body: CompareIn, svc: Svc, who: Viewer) -> dict[str, Any]:
-    return await asyncio.to_thread(run_compare, svc.db, mid, body)
-
-
-def run_diagnose(db: Database, mid: int, version_id: int | None) -> dict[str, Any]:
-    from tracker.workbench.diagnose import diagnose
-
-    _, meas = load_measurement(db, mid)
-    v, model = load_version(db, mid, version_id)
-    out = plain(diagnose(meas, model).to_dict())
-    out["version_id"] = v["id"]
-    out["version_label"] = v["label"]
-    return out
+async def compare(mid: RowId, body: CompareIn, svc: Svc, who: Viewer) -> dict[str, Any]:
+    rec = await stored_measurement(svc, mid)
+    v, _ = load_version(svc.db, mid, body.version_id)
+    out = await svc.work.run(
+        who, heavy.compare, rec["csv"], rec["name"], v["model"], body.horizon_s, body.mode
+    )
+    return _with_version(out, v)
 
 
 @router.post("/measurements/{mid}/diagnose", summary="Rank the missing effects of a model version")
-async def diagnose_route(mid: int, body: DiagnoseIn, svc: Svc, who: Engineer) -> dict[str, Any]:
-    return await asyncio.to_thread(run_diagnose, svc.db, mid, body.version_id)
+async def diagnose_route(mid: RowId, body: DiagnoseIn, svc: Svc, who: Engineer) -> dict[str, Any]:
+    rec = await stored_measurement(svc, mid)
+    v, _ = load_version(svc.db, mid, body.version_id)
+    out = await svc.work.run(who, heavy.diagnose, rec["csv"], rec["name"], v["model"])
+    return _with_version(out, v)
 
 
-def _fit_into_version(
-    db: Database,
+async def _refit_into_version(
+    svc: Service,
+    who: Principal,
     mid: int,
-    parent: dict[str, Any],
-    model: AxisModel,
-    label: str,
+    version_id: int | None,
     free: list[str] | None = None,
+    add_effect: str | None = None,
 ) -> dict[str, Any]:
-    from tracker.workbench.fit import fit_model
-
-    rec, meas = load_measurement(db, mid)
-    res = fit_model(meas, model, free=free) if free else fit_model(meas, model)
-    return _add_version(db, mid, parent["id"], label, res.model, rec["axis"], meas, _fitter_extra(res))
-
-
-def _fitter_extra(res: Any) -> dict[str, Any]:
-    """What a version keeps from the fitter: parameters with standard errors, convergence."""
-    return {
-        "params": dict(res.params),
-        "stderr": dict(res.stderr),
-        "converged": bool(res.converged),
-        "free": list(res.free),
-    }
-
-
-def run_fit(db: Database, mid: int, body: FitIn) -> dict[str, Any]:
-    v, model = load_version(db, mid, body.version_id)
-    label = "refit" if not model.effects else f"refit ({', '.join(model.effects)})"
-    return _fit_into_version(db, mid, v, model, label, body.free)
+    rec = await stored_measurement(svc, mid)
+    v, model = load_version(svc.db, mid, version_id)
+    if add_effect is not None:
+        get_effect(add_effect)
+        if model.has(add_effect):
+            raise ConfigError(f"version {v['id']} already has {add_effect!r}")
+        label = f"+{add_effect}"
+    else:
+        label = "refit" if not model.effects else f"refit ({', '.join(model.effects)})"
+    new = await svc.work.run(
+        who, heavy.refit, rec["csv"], rec["name"], rec["axis"], v["model"], free, add_effect
+    )
+    vid = svc.db.add_version(mid, v["id"], label, new["model"], new["fit"])
+    out = svc.db.get_version(vid)
+    assert out is not None
+    return out
 
 
 @router.post(
     "/measurements/{mid}/fit", status_code=201, summary="Refit a version's parameters into a new version"
 )
-async def fit(mid: int, body: FitIn, svc: Svc, who: Engineer) -> dict[str, Any]:
-    return await asyncio.to_thread(run_fit, svc.db, mid, body)
-
-
-def run_add_effect(db: Database, mid: int, body: AddEffectIn) -> dict[str, Any]:
-    get_effect(body.effect)
-    v, model = load_version(db, mid, body.version_id)
-    if model.has(body.effect):
-        raise ConfigError(f"version {v['id']} already has {body.effect!r}")
-    return _fit_into_version(db, mid, v, model.with_effect(body.effect), f"+{body.effect}")
+async def fit(mid: RowId, body: FitIn, svc: Svc, who: Engineer) -> dict[str, Any]:
+    return await _refit_into_version(svc, who, mid, body.version_id, free=body.free)
 
 
 @router.post(
@@ -250,20 +215,19 @@ def run_add_effect(db: Database, mid: int, body: AddEffectIn) -> dict[str, Any]:
     status_code=201,
     summary="Add an effect to a version and refit every parameter (K fixed) into a new version",
 )
-async def add_effect(mid: int, body: AddEffectIn, svc: Svc, who: Engineer) -> dict[str, Any]:
-    return await asyncio.to_thread(run_add_effect, svc.db, mid, body)
+async def add_effect(mid: RowId, body: AddEffectIn, svc: Svc, who: Engineer) -> dict[str, Any]:
+    return await _refit_into_version(svc, who, mid, body.version_id, add_effect=body.effect)
 
 
 @router.get("/measurements/{mid}/versions", summary="Model versions of a measurement with their fits")
-async def versions(mid: int, svc: Svc, who: Viewer) -> list[dict[str, Any]]:
-    load_measurement(svc.db, mid)
+async def versions(mid: RowId, svc: Svc, who: Viewer) -> list[dict[str, Any]]:
+    if svc.db.get_measurement_meta(mid) is None:
+        raise NotFound(f"no measurement {mid}")
     return svc.db.list_versions(mid)
 
 
 @router.get("/versions/{vid}", summary="One model version")
-async def version(vid: int, svc: Svc, who: Viewer) -> dict[str, Any]:
-    from app.errors import NotFound
-
+async def version(vid: RowId, svc: Svc, who: Viewer) -> dict[str, Any]:
     v = svc.db.get_version(vid)
     if v is None:
         raise NotFound(f"no version {vid}")

@@ -6,6 +6,7 @@ import socket
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
@@ -31,17 +32,23 @@ class Rig:
         return {"X-API-Key": self.keys[role]}
 
 
-def make_rig(tmp: Path, viewer: bool = False) -> Iterator[Rig]:
+def make_rig(
+    tmp: Path, viewer: bool = False, raise_server_exceptions: bool = True, **overrides: Any
+) -> Iterator[Rig]:
+    """A running service on ``tmp`` with keys for each role; ``overrides`` are settings."""
     settings = load_settings(
         None,
-        data_dir=str(tmp),
-        viewer_enabled=viewer,
-        viewer_port=free_port(),
-        audio_enabled=False,
-        control_lock_ttl_s=30.0,
+        **{
+            "data_dir": str(tmp),
+            "viewer_enabled": viewer,
+            "viewer_port": free_port(),
+            "audio_enabled": False,
+            "control_lock_ttl_s": 30.0,
+            **overrides,
+        },
     )
     app = create_app(settings)
-    with TestClient(app) as client:
+    with TestClient(app, raise_server_exceptions=raise_server_exceptions) as client:
         db = app.state.db
         keys = {"admin": (tmp / "admin.key").read_text().strip()}
         for role in ("viewer", "operator", "engineer"):
