@@ -10,7 +10,14 @@ import control
 import numpy as np
 
 from tracker.errors import ConfigError
-from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, get_effect, get_param
+from tracker.plant.effects import (
+    BASE_EFFECTS,
+    CATALOGUE,
+    check_position_only,
+    get_effect,
+    get_param,
+    is_generic,
+)
 from tracker.plant.params import AxisPreset, get_preset
 
 
@@ -67,6 +74,11 @@ class AxisModel:
             values[key] = v
         for key, v in values.items():
             values[key] = get_param(key).check(v, "model")
+        for name in names:
+            if is_generic(name):
+                # The simulator tabulates a generic effect's torque at rest: it must not depend
+                # on the velocity at these values either.
+                check_position_only(CATALOGUE[name], values, "model")
         return cls(float(gain_nm_per_v), tuple(names), _freeze(values))
 
     @classmethod

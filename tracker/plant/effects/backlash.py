@@ -11,4 +11,8 @@ EFFECT = Effect(
     ),
     params=(Param("width", "rad", 0.0, 0.0, 0.5, "whole dead band at the load"),),
     signature="encoder jumps at velocity reversals while the load lags",
+    look_alikes=("stiction", "compliance"),
+    experiment=(
+        "slow triangle moves with a load-side sensor (or a camera on a target): lost motion at each reversal"
+    ),
 )

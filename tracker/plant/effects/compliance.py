@@ -14,4 +14,6 @@ EFFECT = Effect(
         Param("damping", "1", 0.1, 0.001, 2.0, "damping ratio of the resonance"),
     ),
     signature="a resonance peak in the residual spectrum",
+    look_alikes=("backlash", "delay"),
+    experiment="a chirp or small steps at 5–100 Hz: a resonance peak in the encoder's frequency response",
 )

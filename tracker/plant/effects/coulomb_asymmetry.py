@@ -21,4 +21,9 @@ EFFECT = Effect(
     params=(Param("negative", "N·m", 0.052, 0.0, 1e6, "Coulomb torque when moving negative"),),
     signature="residual torque has a different mean in each direction of motion",
     torque_nm=torque_nm,
+    look_alikes=("offset",),
+    experiment=(
+        "friction-ID sweep (tracker friction-id): per-direction Coulomb intercepts; repeat it at "
+        "another position to tell direction-dependent friction from a bias torque"
+    ),
 )

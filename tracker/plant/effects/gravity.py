@@ -23,4 +23,6 @@ EFFECT = Effect(
     ),
     signature="residual torque follows sin θ",
     torque_nm=torque_nm,
+    look_alikes=("offset", "ripple"),
+    experiment="slow constant-speed moves over the widest angle range: the holding torque follows sin θ",
 )

@@ -19,4 +19,9 @@ EFFECT = Effect(
     params=(Param("torque", "N·m", 0.0, -1e6, 1e6, "constant resisting torque"),),
     signature="residual torque has a constant non-zero mean",
     torque_nm=torque_nm,
+    look_alikes=("coulomb_asymmetry", "gravity"),
+    experiment=(
+        "repeat the friction-ID sweep (tracker friction-id) at a different position or with the "
+        "load rebalanced: a bias torque (cable, unbalance) changes with them, friction does not"
+    ),
 )

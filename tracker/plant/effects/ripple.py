@@ -25,4 +25,8 @@ EFFECT = Effect(
     ),
     signature="residual is periodic in θ",
     torque_nm=torque_nm,
+    look_alikes=("gravity",),
+    experiment=(
+        "a slow constant-speed move over a full revolution (or the widest range): torque ripple vs θ"
+    ),
 )

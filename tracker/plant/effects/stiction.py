@@ -27,4 +27,9 @@ EFFECT = Effect(
     ),
     signature="error concentrates at low speed and at starts from rest",
     torque_nm=torque_nm,
+    look_alikes=("delay", "backlash"),
+    experiment=(
+        "friction-ID sweep (tracker friction-id): break-away voltage on a slow ramp above the "
+        "Coulomb intercept shows stiction (a delay does not change it)"
+    ),
 )

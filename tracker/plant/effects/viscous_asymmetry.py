@@ -21,4 +21,6 @@ EFFECT = Effect(
     params=(Param("negative", "N·m·s/rad", 8.5e-4, 0.0, 1e6, "viscous coefficient when moving negative"),),
     signature="residual torque grows with speed differently in each direction",
     torque_nm=torque_nm,
+    look_alikes=("coulomb_asymmetry", "offset"),
+    experiment="friction-ID sweep (tracker friction-id): compare the slopes of the two directions",
 )
