@@ -25,11 +25,19 @@ _SOURCES = (
 _CALLERS = ("loop.", "closed_loop.")
 
 
-def purge_stale_cache(cache_dir: Path | None = None) -> bool:
-    """Remove the callers' cache files if the inlined sources changed. Returns True if purged."""
+def purge_stale_cache(
+    cache_dir: Path | None = None,
+    sources: tuple[Path, ...] = _SOURCES,
+    callers: tuple[str, ...] = _CALLERS,
+) -> bool:
+    """Remove the callers' cache files if the inlined sources changed. Returns True if purged.
+
+    ``cache_dir`` holds the callers' cache (default: this package's ``__pycache__``); other
+    packages whose compiled loops inline the plant pass their own (``tracker.workbench``).
+    """
     cache = cache_dir or _HERE / "__pycache__"
     digest = hashlib.sha256()
-    for src in _SOURCES:
+    for src in sources:
         try:
             digest.update(src.read_bytes())
         except OSError:
@@ -43,7 +51,7 @@ def purge_stale_cache(cache_dir: Path | None = None) -> bool:
     try:
         cache.mkdir(exist_ok=True)
         for f in cache.iterdir():
-            if f.name.startswith(_CALLERS) and ".nb" in f.suffix:
+            if f.name.startswith(callers) and ".nb" in f.suffix:
                 f.unlink(missing_ok=True)
         stamp.write_text(digest.hexdigest(), encoding="ascii")
     except OSError:

@@ -18,6 +18,11 @@ axis would (a plain semi-implicit Euler step answers half a sample early, which 
 data reads as a half-sample delay). The delay is applied the same way, exactly, by averaging
 the delayed held command, so results vary smoothly with ``delay.seconds``.
 
+Effects that are not built in (generic effects, :mod:`tracker.plant.effects`) are torques of
+the angle alone, τ(θ). Compiled code cannot call their Python functions, so :func:`pack_params`
+tabulates their sum on a fine grid of θ and appends the table to the packed vector; the motor
+side takes the linearly interpolated torque (beyond the table's ends, the end value).
+
 Everything hot is compiled with numba: the closed-loop simulator in ``tracker.control`` calls
 :func:`advance` and :func:`encoder_rad` directly from its own compiled loop.
 """
@@ -31,7 +36,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from tracker.errors import DataError
+from tracker.errors import ConfigError, DataError
+from tracker.plant.effects import CATALOGUE, is_generic
 from tracker.plant.effects.quantization import SEED_ENCODER_STEP_RAD
 from tracker.plant.model import AxisModel
 from tracker.units import AMPLIFIER_LIMIT_V
@@ -42,7 +48,15 @@ FloatArray = NDArray[np.float64]
 I_K, I_JM, I_JL, I_BP, I_BN, I_FCP, I_FCN, I_FS, I_VS = 0, 1, 2, 3, 4, 5, 6, 7, 8
 I_OFFSET, I_GT, I_GPH, I_DELAY, I_ULIM, I_RA, I_RN, I_RPH = 9, 10, 11, 12, 13, 14, 15, 16
 I_BW, I_CK, I_CC, I_Q, I_TWO, I_STIC, I_NSUB = 17, 18, 19, 20, 21, 22, 23
-N_PACKED = 24
+# The generic torque table: first angle (rad), step (rad), length; its values follow N_PACKED.
+I_TAB0, I_TABH, I_TABN = 24, 25, 26
+N_PACKED = 27
+
+# The table spans the data's angles plus this margin each side, at this step (4096 points over
+# ±2π); a longer span gets more points, up to TABLE_MAX_POINTS.
+TABLE_MARGIN_RAD = 2.0 * math.pi
+TABLE_STEP_RAD = 4.0 * math.pi / 4095
+TABLE_MAX_POINTS = 1 << 16
 
 # Backlash without a compliance effect still needs a contact: a stiff, well-damped belt.
 CONTACT_FREQUENCY_HZ = 150.0
@@ -54,11 +68,42 @@ MAX_OMEGA_H = 0.3
 STATE_SIZE = 4
 
 
-def pack_params(model: AxisModel, dt_s: float, quantize: bool = True) -> FloatArray:
+def generic_torque_table(
+    model: AxisModel, range_rad: tuple[float, float] = (0.0, 0.0)
+) -> tuple[float, float, FloatArray]:
+    """The summed torque (N·m, resisting) of ``model``'s generic effects at rest on a grid of θ.
+
+    The grid covers ``range_rad`` (the angles the run is expected to visit) plus
+    :data:`TABLE_MARGIN_RAD` each side. Returns (first angle, step, values of shape (m,)); m = 0
+    when the model has no generic effect.
+    """
+    names = [e for e in model.effects if is_generic(e)]
+    if not names:
+        return 0.0, 1.0, np.zeros(0)
+    lo, hi = min(range_rad) - TABLE_MARGIN_RAD, max(range_rad) + TABLE_MARGIN_RAD
+    n = int(min(TABLE_MAX_POINTS, max(2, math.ceil((hi - lo) / TABLE_STEP_RAD) + 1)))
+    theta = np.linspace(lo, hi, n)
+    rest = np.zeros_like(theta)
+    total = np.zeros_like(theta)
+    for name in names:
+        tau = np.asarray(CATALOGUE[name].torque_nm(model.params, theta, rest), dtype=float)
+        if tau.shape != theta.shape or not np.all(np.isfinite(tau)):
+            bad = theta[~np.isfinite(tau)] if tau.shape == theta.shape else theta[:0]
+            where = f" at θ = {bad[0]:.4g} rad" if bad.size else f" (shape {tau.shape})"
+            raise ConfigError(f"the torque of effect {name!r} is not a finite array over θ{where}")
+        total += tau
+    return float(lo), float(theta[1] - theta[0]), total
+
+
+def pack_params(
+    model: AxisModel, dt_s: float, quantize: bool = True, range_rad: tuple[float, float] = (0.0, 0.0)
+) -> FloatArray:
     """Pack ``model`` into the simulator's parameter vector for sample time ``dt_s``.
 
     Disabled effects get neutral values (no offset, symmetric friction, ±10 V, ...), so the
-    compiled code needs no branches per effect. Returns shape (N_PACKED,).
+    compiled code needs no branches per effect. Generic effects become a torque table over
+    ``range_rad`` ± 2π (see :func:`generic_torque_table`). Returns shape (N_PACKED + m,), m the
+    table's length (0 without generic effects).
     """
     p = model.params
     P = np.zeros(N_PACKED)
@@ -98,7 +143,27 @@ def pack_params(model: AxisModel, dt_s: float, quantize: bool = True) -> FloatAr
         n_sub = max(1, math.ceil(rate * dt_s / MAX_OMEGA_H))
         P[I_TWO] = 1.0
     P[I_NSUB] = float(n_sub)
-    return P
+    start, step, table = generic_torque_table(model, range_rad)
+    if table.size == 0:
+        return P
+    P[I_TAB0], P[I_TABH], P[I_TABN] = start, step, float(table.size)
+    return np.concatenate((P, table))
+
+
+@njit(cache=True, inline="always")
+def _table_torque(P: FloatArray, theta: float) -> float:
+    """The generic effects' tabulated torque at ``theta`` (0 without a table)."""
+    n = int(P[I_TABN])
+    if n == 0:
+        return 0.0
+    x = (theta - P[I_TAB0]) / P[I_TABH]
+    if x <= 0.0:
+        return float(P[N_PACKED])
+    if x >= n - 1:
+        return float(P[N_PACKED + n - 1])
+    i = int(x)
+    f = x - i
+    return float((1.0 - f) * P[N_PACKED + i] + f * P[N_PACKED + i + 1])
 
 
 @njit(cache=True, inline="always")
@@ -190,7 +255,7 @@ def advance(x: FloatArray, P: FloatArray, u: FloatArray, k: int, dt: float, dist
             u_b = _applied_command(u, t, half_h, dt, P)
         if P[I_TWO] == 0.0:
             th = x[0]
-            rest = -P[I_OFFSET] + dist_nm
+            rest = -P[I_OFFSET] + dist_nm - _table_torque(P, th)
             if P[I_RA] != 0.0:
                 rest -= P[I_RA] * math.sin(P[I_RN] * th + P[I_RPH])
             if P[I_GT] != 0.0:
@@ -216,6 +281,7 @@ def advance(x: FloatArray, P: FloatArray, u: FloatArray, k: int, dt: float, dist
             if dz != 0.0:
                 tau_c += P[I_CC] * (x[1] - x[3])
             rest = -P[I_OFFSET] - P[I_RA] * math.sin(P[I_RN] * x[0] + P[I_RPH]) - tau_c
+            rest -= _table_torque(P, x[0])
             if u_a == u_b:
                 x[1] = _friction_step(x[1], P[I_K] * u_a + rest, P[I_JM], h, P)
             else:
@@ -311,11 +377,12 @@ def simulate(
     """Simulate ``model`` driven by the command ``u_v`` (V, shape (n,)) sampled every ``dt_s``.
 
     ``x0`` is the initial state (see :func:`initial_state`); ``disturbance_nm`` an external load
-    torque per sample, shape (n,). Returns a :class:`SimResult`.
+    torque per sample, shape (n,). Generic effects are tabulated over ±2π around the start
+    angle (see :func:`pack_params`). Returns a :class:`SimResult`.
     """
     u = _check_input(u_v, dt_s)
-    P = pack_params(model, dt_s, quantize)
     x = initial_state() if x0 is None else np.asarray(x0, dtype=float)
+    P = pack_params(model, dt_s, quantize, (float(x[0]), float(x[0])))
     dist = np.zeros(0) if disturbance_nm is None else np.ascontiguousarray(disturbance_nm, dtype=float)
     if dist.size and dist.shape != u.shape:
         raise DataError(f"disturbance has shape {dist.shape}, command has {u.shape}")
@@ -339,9 +406,10 @@ def predict_windows(
     predictor's hot path.
     """
     u = _check_input(u_v, dt_s)
-    P = pack_params(model, dt_s, quantize=False)
     st = np.ascontiguousarray(starts, dtype=np.int64)
     x0 = np.ascontiguousarray(x0s, dtype=float).reshape(-1, STATE_SIZE)
+    span = (float(x0[:, 0].min()), float(x0[:, 0].max())) if x0.size else (0.0, 0.0)
+    P = pack_params(model, dt_s, quantize=False, range_rad=span)
     return _run_windows(P, u, float(dt_s), st, int(horizon), x0)
 
 
@@ -351,6 +419,7 @@ __all__ = [
     "SimResult",
     "advance",
     "encoder_rad",
+    "generic_torque_table",
     "initial_state",
     "pack_params",
     "predict_windows",
