@@ -63,7 +63,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``tracker`` console script."""
     args_list = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(args_list[0] if args_list else None)
+    try:
+        parser = build_parser(args_list[0] if args_list else None)
+    except TrackerError as exc:  # e.g. an effect plug-in in TRACKER_EFFECTS that fails to load
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     args = parser.parse_args(args_list)
     if not hasattr(args, "func"):
         parser.print_help()

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tracker.plant.effects import CATALOGUE
+from tracker.plant.effects import CATALOGUE, generic_effects
 from tracker.plant.model import AxisModel
 from tracker.workbench.data import Measurement
 
@@ -51,9 +51,9 @@ class BreakAway:
 
 
 def _other_torque(model: AxisModel, theta: FloatArray) -> FloatArray:
-    """Direction-independent static torques (offset, gravity, ripple) at θ."""
+    """Direction-independent static torques (offset, gravity, ripple, generic effects) at θ."""
     out = np.zeros_like(theta)
-    for e in ("offset", "gravity", "ripple"):
+    for e in ("offset", "gravity", "ripple", *generic_effects()):
         if model.has(e):
             out += CATALOGUE[e].torque_nm(model.params, theta, np.zeros_like(theta))
     return out

@@ -1,20 +1,25 @@
 """Search each missing effect's nonlinear parameter by inverse dynamics and score the best one.
 
 One function per effect family; :func:`screen_missing_effects` runs them all for a model.
-Grids are coarse-then-fine so that every candidate costs a few tens of milliseconds.
+Grids are coarse-then-fine so that every candidate costs a few tens of milliseconds. Effects
+that are not built in are screened by :func:`screen_generic` on their own declared grids.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tracker.errors import JobCancelled
+from tracker.plant.effects import generic_effects, get_effect
 from tracker.plant.model import AxisModel
 from tracker.units import AMPLIFIER_LIMIT_V
+from tracker.workbench import generic
 from tracker.workbench.idim import Regression
 from tracker.workbench.screening import Screen, Structure, TorqueDesign, screen
 from tracker.workbench.search import whole_is_enough
@@ -168,6 +173,11 @@ def screen_missing_effects(
             out[effect] = screen(effect, design, model, base, base_reg, st, 3, {"width": w}, reg)
         elif effect == "compliance":
             out[effect] = _screen_compliance(design, model, base, base_reg)
+    for effect in generic_effects():
+        if cancel is not None and cancel():
+            raise JobCancelled("diagnosis cancelled while screening effects")
+        if not model.has(effect):
+            out[effect] = screen_generic(design, model, base, base_reg, effect)
     return out
 
 
@@ -239,4 +249,57 @@ def _screen_compliance(
     return screen("compliance", design, model, base, base_reg, st, 4, {"frequency": f1, "damping": z1}, reg)
 
 
-__all__ = ["SCREENED", "ripple_periodogram", "screen_missing_effects"]
+GAUSS_NEWTON_STEPS = 6
+
+
+def screen_generic(
+    design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression, effect: str
+) -> Screen:
+    """A generic effect: its searched parameters over the product of their declared grids, each
+    then refined by golden section; its linear parameters by the regression; then Gauss–Newton
+    steps on every parameter it is not linear in (each a regression linearized at the estimate,
+    kept while the error falls)."""
+    eff = get_effect(effect)
+    ne = base_reg.n_eff
+    held = {k: v for k, v in generic.defaults(eff).items() if k in generic.held_params(eff)}
+
+    def make(values: Mapping[str, float]) -> Structure:
+        return base.plus(effect, **{**held, **values})
+
+    chosen: dict[str, float] = {}
+    grids = {f"{effect}.{k}": np.asarray(v, dtype=float) for k, v in eff.search.items()}
+    if grids:
+        names = list(grids)
+        combos = [dict(zip(names, c, strict=True)) for c in itertools.product(*grids.values())]
+        sses = [design.fit(make(c), ne, cv=False).sse for c in combos]
+        chosen = {k: float(v) for k, v in combos[int(np.argmin(sses))].items()}
+        for name, grid in grids.items():
+            i = int(np.argmin(np.abs(grid - chosen[name])))
+            local = grid[max(0, i - 1) : i + 2]
+            log = bool(np.all(grid > 0) and grid.max() > 10 * grid.min())
+            _, _, chosen[name] = _refine_1d(
+                design, lambda v: make({**chosen, name: v}), local, ne, log=log  # noqa: B023
+            )
+    st = make(chosen)
+    reg = design.fit(st, ne, cv=False)
+    nonlinear = generic.nonlinear_params(eff)
+    for _ in range(GAUSS_NEWTON_STEPS if nonlinear else 0):
+        at = {**st.settings, **dict(zip(reg.names, reg.coef, strict=True))}
+        step = design.fit(replace(st, settings=at, linearized=effect), ne, cv=False)
+        moved = dict(zip(step.names, step.coef, strict=True))
+        st_next = make({**chosen, **{n: _clip(n, moved[n]) for n in nonlinear}})
+        reg_next = design.fit(st_next, ne, cv=False)
+        if not reg_next.sse < reg.sse:
+            break
+        st, reg = st_next, reg_next
+        chosen.update({n: st.settings[n] for n in nonlinear})
+    detail = {k: v for k, v in chosen.items()}
+    return screen(effect, design, model, base, base_reg, st, generic.param_count(effect), detail)
+
+
+def _clip(full_name: str, value: float) -> float:
+    prm = get_effect(full_name.partition(".")[0]).param(full_name.partition(".")[2])
+    return float(min(max(value, prm.lower), prm.upper))
+
+
+__all__ = ["SCREENED", "ripple_periodogram", "screen_generic", "screen_missing_effects"]

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from scipy import signal
 
+from tracker.plant.effects import CATALOGUE, Effect, generic_effects, get_effect, is_generic
 from tracker.plant.model import AxisModel
+from tracker.workbench import generic
 from tracker.workbench.breakaway import BreakAway
 from tracker.workbench.idim import Regression, Signals
 from tracker.workbench.kstep import Comparison
@@ -19,46 +21,35 @@ from tracker.workbench.screening import Screen, TorqueDesign
 if TYPE_CHECKING:
     from tracker.workbench.diagnose import Candidate
 
-# Effects that explain the same residual on ordinary closed-loop data.
-LOOK_ALIKES: dict[str, tuple[str, ...]] = {
-    "offset": ("coulomb_asymmetry", "gravity"),
-    "coulomb_asymmetry": ("offset",),
-    "viscous_asymmetry": ("coulomb_asymmetry", "offset"),
-    "gravity": ("offset", "ripple"),
-    "ripple": ("gravity",),
-    "stiction": ("delay", "backlash"),
-    "delay": ("stiction", "compliance"),
-    "backlash": ("stiction", "compliance"),
-    "compliance": ("backlash", "delay"),
-    "saturation": (),
-}
+T = TypeVar("T")
 
-EXPERIMENTS: dict[str, str] = {
-    "offset": (
-        "repeat the friction-ID sweep (tracker friction-id) at a different position or with the "
-        "load rebalanced: a bias torque (cable, unbalance) changes with them, friction does not"
-    ),
-    "coulomb_asymmetry": (
-        "friction-ID sweep (tracker friction-id): per-direction Coulomb intercepts; repeat it at "
-        "another position to tell direction-dependent friction from a bias torque"
-    ),
-    "viscous_asymmetry": "friction-ID sweep (tracker friction-id): compare the slopes of the two directions",
-    "gravity": "slow constant-speed moves over the widest angle range: the holding torque follows sin θ",
-    "ripple": "a slow constant-speed move over a full revolution (or the widest range): torque ripple vs θ",
-    "stiction": (
-        "friction-ID sweep (tracker friction-id): break-away voltage on a slow ramp above the "
-        "Coulomb intercept shows stiction (a delay does not change it)"
-    ),
-    "delay": (
-        "small fast steps or a chirp while moving: the lag of the response to the command; the "
-        "constant-voltage sweep does not show a delay"
-    ),
-    "saturation": "constant-voltage steps above the suspected limit: the acceleration stops growing with u",
-    "backlash": (
-        "slow triangle moves with a load-side sensor (or a camera on a target): lost motion at each reversal"
-    ),
-    "compliance": "a chirp or small steps at 5–100 Hz: a resonance peak in the encoder's frequency response",
-}
+
+class _FromCatalogue(Mapping[str, T]):
+    """A live mapping effect name -> one field of its catalogue entry (effects where it is set)."""
+
+    def __init__(self, field: Callable[[Effect], T | None]) -> None:
+        self._field = field
+
+    def _items(self) -> dict[str, T]:
+        return {n: v for n, e in CATALOGUE.items() if (v := self._field(e)) is not None}
+
+    def __getitem__(self, name: str) -> T:
+        return self._items()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items())
+
+    def __len__(self) -> int:
+        return len(self._items())
+
+
+# Effects that explain the same residual on ordinary closed-loop data, and the experiment that
+# confirms each or tells it from those: both live in the effect's own file (Effect.look_alikes,
+# Effect.experiment); these are views of the catalogue.
+LOOK_ALIKES: Mapping[str, tuple[str, ...]] = _FromCatalogue(
+    lambda e: e.look_alikes if e.kind not in ("base", "sensor") else None
+)
+EXPERIMENTS: Mapping[str, str] = _FromCatalogue(lambda e: e.experiment)
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,8 +64,11 @@ class EvidenceContext:
     rest_share: tuple[float, float] = (0.0, 0.0)  # (share of k-step error, share of windows) from rest
 
     def confusions(self, effect: str, significant: Sequence[str]) -> tuple[str, ...]:
-        """Look-alike effects of ``effect`` (those also significant first)."""
-        alike = LOOK_ALIKES.get(effect, ())
+        """Look-alike effects of ``effect``: its own, then generic effects that name it as theirs
+        (a site's effect can name a built-in); those also significant first."""
+        alike = list(LOOK_ALIKES.get(effect, ()))
+        naming = [n for n in generic_effects() if effect in LOOK_ALIKES.get(n, ())]
+        alike += [n for n in naming if n not in (*alike, effect)]
         return tuple(sorted(alike, key=lambda e: e not in significant))
 
     def concentration(self, mask_full: np.ndarray) -> tuple[float, float]:
@@ -215,12 +209,36 @@ def describe(
             f"residual torque spectrum peaks at {f:.1f} Hz ({ratio:.0f}× the median); belt resonance "
             f"{p['compliance.frequency']:.1f} Hz, damping {p['compliance.damping']:.2f}" + tail
         )
-    return "no evidence computed" + tail
+    return generic_evidence(effect, ctx, params) + tail
+
+
+def generic_evidence(effect: str, ctx: EvidenceContext, params: Mapping[str, float]) -> str:
+    """Evidence for an effect without sentences of its own: its signature, how well its torque
+    follows the residual torque, and its own words (``Effect.evidence``)."""
+    eff = get_effect(effect)
+    if not is_generic(effect):
+        return "no evidence computed"
+    sig = ctx.sig
+    th = sig.theta_rad[sig.use]
+    r = ctx.base_reg.residual
+    own = generic.point(eff, params)
+    tau = sig.lowpass(generic.torque_at_rest(eff, own, sig.theta_rad))[sig.use]
+    rr = float(np.corrcoef(r, tau)[0, 1]) if np.std(tau) > 0 and np.std(r) > 0 else 0.0
+    span = float(np.ptp(th))
+    head = f"{eff.signature}: residual torque follows its torque (r = {rr:.2f}) over a {span:.2f} rad range"
+    words = ""
+    if callable(eff.evidence):
+        words = eff.evidence(own, th, r)
+    elif eff.evidence:
+        short = {k.partition(".")[2]: v for k, v in own.items()}
+        words = eff.evidence.format(**short, range_rad=span)
+    return head + (f"; {words}" if words else "")
 
 
 def experiment_for(effect: str) -> str | None:
     """The experiment that confirms ``effect`` or tells it from its look-alikes."""
-    return EXPERIMENTS.get(effect)
+    e = CATALOGUE.get(effect)
+    return e.experiment if e is not None else None
 
 
 def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: str | None) -> tuple[str, ...]:
@@ -285,4 +303,12 @@ def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: st
     return tuple(notes)
 
 
-__all__ = ["EXPERIMENTS", "LOOK_ALIKES", "EvidenceContext", "describe", "experiment_for", "notes_for"]
+__all__ = [
+    "EXPERIMENTS",
+    "LOOK_ALIKES",
+    "EvidenceContext",
+    "describe",
+    "experiment_for",
+    "generic_evidence",
+    "notes_for",
+]

@@ -12,8 +12,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from tracker.plant.effects import get_param
+from tracker.plant.effects import EffectNames, generic_effects, get_param
 from tracker.plant.model import AxisModel
+from tracker.workbench import generic
 from tracker.workbench.evidence import EvidenceContext
 from tracker.workbench.kstep import Comparison, HeldOutSearch, KStepJudge, KStepScore, held_out_search, refine
 from tracker.workbench.screening import Screen
@@ -44,7 +45,9 @@ MIN_HELD_OUT_GAIN = 0.05
 STICTION_RATIOS = (1.1, 1.25, 1.4, 1.6, 1.8, 2.0, 2.4)  # break-away / Coulomb tried by simulation
 STRIBECK_VELOCITIES = (0.02, 0.05, 0.1)  # rad/s
 DELAY_SAMPLES = (0.5, 1, 1.5, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64, 90)  # delays tried by simulation
-TORQUE_EFFECTS = ("offset", "coulomb_asymmetry", "viscous_asymmetry", "gravity", "ripple")
+BUILTIN_TORQUE_EFFECTS = ("offset", "coulomb_asymmetry", "viscous_asymmetry", "gravity", "ripple")
+# Judged by the torque regression: the built-in ones and every generic effect (live view).
+TORQUE_EFFECTS = EffectNames(lambda: (*BUILTIN_TORQUE_EFFECTS, *generic_effects()))
 # Torque-type effects keep their inverse-dynamics parameters (a direct regression on the torque
 # is more accurate than a k-step refit); these act through the simulation and are refitted.
 REFINED_BY_SIMULATION = ("stiction", "delay", "saturation", "compliance")
@@ -71,7 +74,7 @@ class Judged:
 
     @property
     def n_params(self) -> int:
-        return EFFECT_PARAMS.get(self.effect, 1)
+        return EFFECT_PARAMS.get(self.effect) or generic.param_count(self.effect)
 
 
 def with_values(model: AxisModel, values: Mapping[str, float], add: str | None = None) -> AxisModel:

@@ -7,7 +7,8 @@ the residual torque against θ, Stribeck velocity, delay, clip level, backlash w
 frequency/damping on grids. Hidden load states (backlash, compliance) are reconstructed from
 the encoder trajectory: the load is driven through the dead band (a coasting load caught by
 the motor) or through the belt (a second-order filter), and the total momentum balance
-``K·u = J_m·α_m + J_l·α_l + friction`` stays linear in both inertias.
+``K·u = J_m·α_m + J_l·α_l + friction`` stays linear in both inertias. Effects that are not built
+in enter through the derivatives of their torque (:mod:`tracker.workbench.generic`).
 """
 
 from __future__ import annotations
@@ -21,9 +22,10 @@ from numba import njit
 from numpy.typing import NDArray
 from scipy import signal
 
-from tracker.plant.effects import get_param
+from tracker.plant.effects import get_effect, get_param, is_generic
 from tracker.plant.model import AxisModel
 from tracker.units import AMPLIFIER_LIMIT_V
+from tracker.workbench import generic
 from tracker.workbench.idim import (
     Regression,
     Signals,
@@ -49,10 +51,15 @@ NONLINEAR = {
 
 @dataclass(frozen=True, slots=True)
 class Structure:
-    """A model structure for regression: its effects and their nonlinear settings."""
+    """A model structure for regression: its effects and their nonlinear settings.
+
+    ``linearized`` names a generic effect whose every fitted parameter gets a column, linearized
+    at the values in ``settings`` (a Gauss–Newton step); otherwise only its linear ones do.
+    """
 
     effects: tuple[str, ...]
     settings: Mapping[str, float] = field(default_factory=dict)
+    linearized: str | None = None
 
     @classmethod
     def of(cls, model: AxisModel) -> Structure:
@@ -61,6 +68,9 @@ class Structure:
             for k in (*NONLINEAR.values(), "compliance.frequency", "compliance.damping")
             if k in model.params
         }
+        for e in model.effects:
+            if is_generic(e):
+                s.update({k: model.params[k] for k in generic.held_params(get_effect(e))})
         return cls(tuple(model.effects), s)
 
     def plus(self, effect: str, **settings: float) -> Structure:
@@ -190,7 +200,28 @@ class TorqueDesign:
                 vs = st["stiction.velocity"]
                 strib = self._col(("strib", vs), lambda: np.exp(-((om / vs) ** 2)) * self.sgn)  # noqa: B023
                 cols.append(("dFs", strib))
+            elif is_generic(e):
+                cols += self._generic(e, st, e == structure.linearized)[0]
         return cols
+
+    def _generic(
+        self, effect: str, settings: Mapping[str, float], linearized: bool
+    ) -> tuple[list[Column], FloatArray]:
+        """Filtered columns and rest torque of a generic effect (:func:`generic.columns`): its
+        linear parameters, or all it fits when ``linearized`` (a Gauss–Newton step)."""
+        eff = get_effect(effect)
+        p = generic.point(eff, settings)
+        names = generic.fitted_params(eff) if linearized else generic.linear_params(eff)
+        key = ("generic", effect, linearized, *sorted(p.items()))
+        if key not in self._cache:
+            cols, rest = generic.columns(eff, p, self.sig.theta_rad, names)
+            for name, c in cols:
+                self._cache[(*key, name)] = self.sig.lowpass(c)
+            # An effect linear in its parameters leaves only round-off here: skip the filter.
+            size = max([float(np.max(np.abs(c))) for _, c in cols] + [1e-300])
+            tiny = float(np.max(np.abs(rest))) <= 1e-9 * size
+            self._cache[key] = np.zeros_like(rest) if tiny else self.sig.lowpass(rest)
+        return [(n, self._cache[(*key, n)]) for n in names], self._cache[key]
 
     def fit(self, structure: Structure, n_eff: float | None = None, cv: bool = True) -> Regression:
         """Regress the torque of ``structure`` on its columns at the used samples."""
@@ -204,6 +235,9 @@ class TorqueDesign:
             if "saturation" in structure.effects
             else AMPLIFIER_LIMIT_V,
         )
+        for e in structure.effects:
+            if is_generic(e):
+                y = y - self._generic(e, st, e == structure.linearized)[1]
         return regress(tuple(n for n, _ in cols), x, y[idx], self.sig.fold[idx], n_eff, cv)
 
 
@@ -229,6 +263,7 @@ def model_params(
             out["ripple.amplitude"], out["ripple.phase"] = circular_fit(v["r_s"], v["r_c"])
         if "dFs" in v:
             out["stiction.static_torque"] = v["Fc"] + v["dFs"]
+        out.update({n: x for n, x in v.items() if "." in n})  # generic effects: full names
         return out
 
     beta = np.array([c[n] for n in reg.names])
@@ -248,7 +283,7 @@ def model_params(
         for k, v in zip(keys, var, strict=True)
     }
     for k, v in structure.settings.items():
-        if k.split(".")[0] in structure.effects:
+        if k.split(".")[0] in structure.effects and k not in values:
             values[k] = v
     del idx
     clipped = {}

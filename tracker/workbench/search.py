@@ -25,13 +25,19 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from tracker.errors import ConfigError
-from tracker.plant.effects import BASE_EFFECTS, get_param
+from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, get_param, is_generic
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.data import Measurement
 from tracker.workbench.idim import effective_samples
 from tracker.workbench.states import StateEstimate, encoder_step_rad, with_load_observer
-from tracker.workbench.torques import fit_inverse_dynamics, moving_mask, replace_params, residual_torque_nm
+from tracker.workbench.torques import (
+    fit_inverse_dynamics,
+    linear_generic_params,
+    moving_mask,
+    replace_params,
+    residual_torque_nm,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -212,6 +218,10 @@ def search_start(
         n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
     ]
     linear_free = [n for n in linear_free if n not in ("stiction.velocity", "gravity.phase", "ripple.phase")]
+    # Generic effects: only the parameters their torque is linear in (the rest: searched, below).
+    linear_free = [
+        n for n in linear_free if not is_generic(n.split(".")[0]) or n in linear_generic_params(m, free)
+    ]
     if m.has("ripple") and "ripple.amplitude" in free:
         m = replace_params(m, {"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
     w95 = float(np.percentile(np.abs(est.omega_rad_s), 95)) or 1.0
@@ -225,6 +235,8 @@ def search_start(
             )
         if "stiction.velocity" in free:
             m = _grid_on_id(meas, est, m, "stiction.velocity", [f * w95 for f in STRIBECK_GRID], linear_free)
+        for name, grid in _generic_grids(m, free):
+            m = _grid_on_id(meas, est, m, name, grid, linear_free)
         idf = fit_inverse_dynamics(meas, est, m, linear_free, cutoff_hz=_cutoff_hz(m))
     except ConfigError:
         idf = None
@@ -261,6 +273,18 @@ def search_start(
     return StartValues(
         _search_hidden_state(meas, est, m_id, free, k), idf.relative_error_percent if idf else math.nan
     )
+
+
+def _generic_grids(model: AxisModel, free: Sequence[str]) -> list[tuple[str, list[float]]]:
+    """(parameter, grid) for every free parameter a generic effect of ``model`` declares a
+    search grid for (``Effect.search``), searched one after the other on inverse dynamics."""
+    out: list[tuple[str, list[float]]] = []
+    for e in model.effects:
+        if is_generic(e):
+            for short, grid in CATALOGUE[e].search.items():
+                if f"{e}.{short}" in free:
+                    out.append((f"{e}.{short}", [float(v) for v in grid]))
+    return out
 
 
 def _search_hidden_state(

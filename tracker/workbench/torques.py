@@ -21,9 +21,10 @@ from scipy.optimize import lsq_linear
 from scipy.signal import butter, sosfiltfilt
 
 from tracker.errors import DataError
-from tracker.plant.effects import CATALOGUE
+from tracker.plant.effects import CATALOGUE, is_generic
 from tracker.plant.model import AxisModel
 from tracker.units import AMPLIFIER_LIMIT_V
+from tracker.workbench import generic
 from tracker.workbench.data import Measurement
 from tracker.workbench.states import StateEstimate
 
@@ -139,7 +140,24 @@ def _columns(
         n = p["ripple.cycles_per_rev"]
         add("ripple.cos", np.sin(n * th))
         add("ripple.sin", np.cos(n * th))
+    for e in model.effects:
+        if is_generic(e):
+            eff = CATALOGUE[e]
+            at = generic.point(eff, p)
+            for name in linear_generic_params(model, free):
+                if name.startswith(f"{e}."):
+                    add(name, generic.derivative(eff, at, name, th))
     return names, cols
+
+
+def linear_generic_params(model: AxisModel, free: Sequence[str]) -> tuple[str, ...]:
+    """The free parameters of ``model``'s generic effects that its torque is linear in (the
+    inverse dynamics fits these; searched and nonlinear ones keep their values)."""
+    out: list[str] = []
+    for e in model.effects:
+        if is_generic(e):
+            out += [n for n in generic.linear_params(CATALOGUE[e]) if n in free]
+    return tuple(out)
 
 
 def _bounds(name: str) -> tuple[float, float]:
@@ -217,6 +235,9 @@ def fit_inverse_dynamics(
     names, cols = _columns(model, th, om, al, free_set)
     lhs = model.gain_nm_per_v * effective_command_v(model, meas.u_v, meas.dt_s)
     rhs = lhs - model_torque_nm(_zero_linear(model, free_set), th, om)
+    for name, col in zip(names, cols, strict=True):
+        if is_generic(name.partition(".")[0]):  # its torque stayed in; take its fitted part out
+            rhs = rhs + model.params[name] * col
     if "inertia.J" not in free_set:
         rhs = rhs - model.params["inertia.J"] * al
     if cutoff_hz is not None:
@@ -249,6 +270,7 @@ __all__ = [
     "replace_params",
     "effective_command_v",
     "fit_inverse_dynamics",
+    "linear_generic_params",
     "model_torque_nm",
     "moving_mask",
     "residual_torque_nm",
