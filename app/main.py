@@ -23,6 +23,7 @@ from app.routes import ALL_ROUTERS
 from app.service import Service
 from app.settings import Settings, load_settings
 from tracker.errors import ConfigError
+from tracker.plant.effects import load_effect_modules
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 API_PREFIX = "/api/v1"
@@ -47,6 +48,7 @@ def create_app(settings: Settings | None = None, banner_port: int | None = None)
     With ``banner_port`` (the port the server bound) the start banner is printed once started.
     """
     settings = settings or load_settings()
+    load_effect_modules(settings.effects, "effects setting")
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

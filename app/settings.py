@@ -45,6 +45,11 @@ class Settings(BaseSettings):
     rig_config: Path | None = Field(
         None, description="JSON of hidden effects for the simulated rig (tracker/drivers/sim.py)"
     )
+    effects: str = Field(
+        "",
+        description="a site's own effects: modules or .py files defining EFFECT, comma-separated "
+        "(docs/workbench.md, 'Your own effect'); the engine also reads TRACKER_EFFECTS itself",
+    )
     audio_enabled: bool = Field(True, description="use the simulated room as the tracking target source")
     array_file: Path | None = Field(
         None, description="microphone array JSON; default: the shipped 4-mic square"

@@ -52,11 +52,12 @@ I_BW, I_CK, I_CC, I_Q, I_TWO, I_STIC, I_NSUB = 17, 18, 19, 20, 21, 22, 23
 I_TAB0, I_TABH, I_TABN = 24, 25, 26
 N_PACKED = 27
 
-# The table spans the data's angles plus this margin each side, at this step (4096 points over
-# ±2π); a longer span gets more points, up to TABLE_MAX_POINTS.
+# The table spans the data's angles plus this margin each side, at this step (16384 points over
+# ±2π: linear interpolation errs by (n·step)²/8 of a torque with n cycles per revolution, 4e-6
+# at n = 7); a longer span gets more points, up to TABLE_MAX_POINTS.
 TABLE_MARGIN_RAD = 2.0 * math.pi
-TABLE_STEP_RAD = 4.0 * math.pi / 4095
-TABLE_MAX_POINTS = 1 << 16
+TABLE_STEP_RAD = 4.0 * math.pi / 16383
+TABLE_MAX_POINTS = 1 << 18
 
 # Backlash without a compliance effect still needs a contact: a stiff, well-damped belt.
 CONTACT_FREQUENCY_HZ = 150.0

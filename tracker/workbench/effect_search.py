@@ -293,8 +293,14 @@ def screen_generic(
             break
         st, reg = st_next, reg_next
         chosen.update({n: st.settings[n] for n in nonlinear})
-    detail = {k: v for k, v in chosen.items()}
-    return screen(effect, design, model, base, base_reg, st, generic.param_count(effect), detail)
+    scr = screen(effect, design, model, base, base_reg, st, generic.param_count(effect), dict(chosen))
+    if not nonlinear:
+        return scr
+    # Standard errors of the held parameters: the regression linearized at the final values.
+    at = {**st.settings, **dict(zip(scr.regression.names, scr.regression.coef, strict=True))}
+    lin = design.fit(replace(st, settings=at, linearized=effect), ne, cv=False)
+    se = {n: float(math.sqrt(max(lin.cov[i, i], 0.0))) for i, n in enumerate(lin.names) if n in nonlinear}
+    return replace(scr, stderr={**scr.stderr, **se})
 
 
 def _clip(full_name: str, value: float) -> float:

@@ -225,7 +225,7 @@ def generic_evidence(effect: str, ctx: EvidenceContext, params: Mapping[str, flo
     tau = sig.lowpass(generic.torque_at_rest(eff, own, sig.theta_rad))[sig.use]
     rr = float(np.corrcoef(r, tau)[0, 1]) if np.std(tau) > 0 and np.std(r) > 0 else 0.0
     span = float(np.ptp(th))
-    head = f"{eff.signature}: residual torque follows its torque (r = {rr:.2f}) over a {span:.2f} rad range"
+    head = f"{eff.signature} (r = {rr:.2f} between its torque and the residual; θ spans {span:.2f} rad)"
     words = ""
     if callable(eff.evidence):
         words = eff.evidence(own, th, r)
@@ -297,6 +297,14 @@ def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: st
             f"gravity and a bias torque look alike over the {np.ptp(ctx.sig.theta_rad):.2f} rad this run "
             "covers; " + EXPERIMENTS["gravity"]
         )
+    if verdict is not None and is_generic(verdict):
+        alike = [e for e in ctx.confusions(verdict, sig_names) if e in sig_names]
+        experiment = experiment_for(verdict)
+        if alike and experiment:
+            notes.append(
+                f"{verdict} and {', '.join(alike)} explain much the same residual over the "
+                f"{np.ptp(ctx.sig.theta_rad):.2f} rad this run covers; to tell them apart: {experiment}"
+            )
     others = [e for e in sig_names if e != verdict]
     if verdict is not None and others:
         notes.append(f"also significant: {', '.join(others)}; add {verdict}, refit, and diagnose again")

@@ -240,10 +240,10 @@ def register_effect(effect: Effect, where: str = "register_effect") -> Effect:
     known = CATALOGUE.get(effect.name)
     if known is effect:
         return effect
-    if known is not None:
-        raise ConfigError(f"{where}: an effect called {effect.name!r} is already in the catalogue")
     if effect.name in BUILTIN_EFFECTS:
         raise ConfigError(f"{where}: {effect.name!r} is the name of a built-in effect")
+    if known is not None:
+        raise ConfigError(f"{where}: an effect called {effect.name!r} is already in the catalogue")
     check_generic(effect, where)
     CATALOGUE[effect.name] = effect
     return effect
@@ -258,8 +258,11 @@ def unregister_effect(name: str) -> None:
 
 def _import(spec: str) -> ModuleType:
     if spec.endswith(".py"):
-        path = Path(spec).expanduser()
+        path = Path(spec).expanduser().resolve()
         name = f"tracker_effect_{path.stem}"
+        loaded = sys.modules.get(name)
+        if loaded is not None and getattr(loaded, "__file__", None) == str(path):
+            return loaded  # loaded before (the environment, then the service's setting)
         loader_spec = importlib.util.spec_from_file_location(name, path)
         if loader_spec is None or loader_spec.loader is None or not path.is_file():
             raise FileNotFoundError(f"no such file: {path}")
