@@ -72,7 +72,11 @@ async def close_driver(engine: Any) -> None:
 
 
 def check_settings(settings: Settings) -> None:
-    """Fail early (ConfigError, one line on the command line) on a bad rig or array file."""
+    """Fail early (ConfigError, one line on the command line) on a bad effect plug-in, rig or
+    array file. The site's effects load first: the rig file may hide one of them."""
+    from tracker.plant.effects import load_effect_modules
+
+    load_effect_modules(settings.effects, "effects setting")
     if settings.rig_config is not None:
         from tracker.drivers.sim import load_rig_config
 

@@ -24,7 +24,7 @@ from app.modelio import load_version, plain
 from app.schemas import AddEffectIn, CompareIn, DiagnoseIn, FitIn, RowId
 from app.service import Service, Svc
 from tracker.errors import ConfigError, DataError
-from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, OPTIONAL_EFFECTS, get_effect
+from tracker.plant.effects import BASE_EFFECTS, BUILTIN_EFFECTS, CATALOGUE, OPTIONAL_EFFECTS, get_effect
 
 router = APIRouter(prefix="/workbench", tags=["workbench"])
 
@@ -39,7 +39,11 @@ async def effects(who: Viewer) -> list[dict[str, Any]]:
                 "kind": e.kind,
                 "base": name in BASE_EFFECTS,
                 "optional": name in OPTIONAL_EFFECTS,
+                "builtin": name in BUILTIN_EFFECTS,
                 "signature": e.signature,
+                "description": e.description,
+                "look_alikes": list(e.look_alikes),
+                "experiment": e.experiment,
                 "params": [
                     {
                         "name": f"{name}.{p.name}",

@@ -77,3 +77,19 @@ def test_the_site_guard_margin_reaches_the_engine(tmp_path: Path) -> None:
     cfg.write_text("guard_margin_deg = 60.0\n")
     with pytest.raises(ConfigError, match="guard_margin_deg"):
         load_settings(cfg)
+
+
+def test_a_sites_own_effect_loads_before_the_rig_file_that_hides_it(tmp_path: Path) -> None:
+    from app.rig import check_settings
+    from tracker.plant.effects import CATALOGUE, unregister_effect
+
+    cable = Path(__file__).resolve().parents[2] / "examples" / "effects" / "cable_drag.py"
+    rig_file = tmp_path / "rig.json"
+    rig_file.write_text('{"pan": {"effects": ["cable_drag"], "params": {"cable_drag.stiffness": 0.02}}}')
+    try:
+        check_settings(load_settings(None, effects=str(cable), rig_config=str(rig_file)))
+        assert "cable_drag" in CATALOGUE
+    finally:
+        unregister_effect("cable_drag")
+    with pytest.raises(ConfigError, match="effects setting: cannot load effect module 'site.nope'"):
+        check_settings(load_settings(None, effects="site.nope"))

@@ -262,3 +262,19 @@ def test_upload_with_starting_effects_and_gain(rig: Rig, offset_csv: str) -> Non
     )
     assert neg.status_code == 422
     assert snapshot(rig) == before
+
+
+def test_the_effects_list_shows_a_sites_own_effect(rig: Rig) -> None:
+    from pathlib import Path
+
+    from tracker.plant.effects import load_effect_modules, unregister_effect
+
+    load_effect_modules(str(Path(__file__).resolve().parents[2] / "examples" / "effects" / "cable_drag.py"))
+    try:
+        listed = rig.client.get(f"{API}/effects", headers=rig.h("viewer")).json()
+    finally:
+        unregister_effect("cable_drag")
+    by = {e["name"]: e for e in listed}
+    assert by["cable_drag"]["optional"] and not by["cable_drag"]["builtin"]
+    assert by["cable_drag"]["look_alikes"] == ["offset", "gravity"] and by["cable_drag"]["experiment"]
+    assert by["gravity"]["builtin"] and "sin θ" in by["gravity"]["experiment"]
