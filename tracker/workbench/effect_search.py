@@ -249,16 +249,12 @@ def _screen_compliance(
     return screen("compliance", design, model, base, base_reg, st, 4, {"frequency": f1, "damping": z1}, reg)
 
 
-GAUSS_NEWTON_STEPS = 6
-
-
 def screen_generic(
     design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression, effect: str
 ) -> Screen:
     """A generic effect: its searched parameters over the product of their declared grids, each
     then refined by golden section; its linear parameters by the regression; then Gauss–Newton
-    steps on every parameter it is not linear in (each a regression linearized at the estimate,
-    kept while the error falls)."""
+    steps on every parameter it is not linear in (:func:`generic.gauss_newton`)."""
     eff = get_effect(effect)
     ne = base_reg.n_eff
     held = {k: v for k, v in generic.defaults(eff).items() if k in generic.held_params(eff)}
@@ -281,31 +277,10 @@ def screen_generic(
                 design, lambda v: make({**chosen, name: v}), local, ne, log=log  # noqa: B023
             )
     st = make(chosen)
-    reg = design.fit(st, ne, cv=False)
-    nonlinear = generic.nonlinear_params(eff)
-    for _ in range(GAUSS_NEWTON_STEPS if nonlinear else 0):
-        at = {**st.settings, **dict(zip(reg.names, reg.coef, strict=True))}
-        step = design.fit(replace(st, settings=at, linearized=effect), ne, cv=False)
-        moved = dict(zip(step.names, step.coef, strict=True))
-        st_next = make({**chosen, **{n: _clip(n, moved[n]) for n in nonlinear}})
-        reg_next = design.fit(st_next, ne, cv=False)
-        if not reg_next.sse < reg.sse:
-            break
-        st, reg = st_next, reg_next
-        chosen.update({n: st.settings[n] for n in nonlinear})
-    scr = screen(effect, design, model, base, base_reg, st, generic.param_count(effect), dict(chosen))
-    if not nonlinear:
-        return scr
-    # Standard errors of the held parameters: the regression linearized at the final values.
-    at = {**st.settings, **dict(zip(scr.regression.names, scr.regression.coef, strict=True))}
-    lin = design.fit(replace(st, settings=at, linearized=effect), ne, cv=False)
-    se = {n: float(math.sqrt(max(lin.cov[i, i], 0.0))) for i, n in enumerate(lin.names) if n in nonlinear}
-    return replace(scr, stderr={**scr.stderr, **se})
-
-
-def _clip(full_name: str, value: float) -> float:
-    prm = get_effect(full_name.partition(".")[0]).param(full_name.partition(".")[2])
-    return float(min(max(value, prm.lower), prm.upper))
+    st, _ = generic.gauss_newton(design, st, design.fit(st, ne, cv=False), effect, ne)
+    detail = {n: st.settings[n] for n in generic.nonlinear_params(eff)}
+    scr = screen(effect, design, model, base, base_reg, st, generic.param_count(effect), detail)
+    return replace(scr, stderr={**scr.stderr, **generic.held_stderr(design, st, scr.regression, effect, ne)})
 
 
 __all__ = ["SCREENED", "ripple_periodogram", "screen_generic", "screen_missing_effects"]

@@ -17,16 +17,23 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tracker.plant.effects import Effect, get_effect
 
+if TYPE_CHECKING:
+    from tracker.workbench.idim import Regression
+    from tracker.workbench.screening import Structure, TorqueDesign
+
 FloatArray = NDArray[np.float64]
 
 # Relative tolerance of the numerical test that a torque is linear in a parameter.
 LINEAR_TOL = 1e-7
+GAUSS_NEWTON_STEPS = 6
 _PROBE = np.linspace(-math.pi, math.pi, 33)
 
 
@@ -139,12 +146,57 @@ def columns(
     return cols, rest
 
 
+def _own(reg: Regression, effect: str) -> dict[str, float]:
+    """The regression's coefficients of ``effect``'s parameters (full names)."""
+    return {n: float(c) for n, c in zip(reg.names, reg.coef, strict=True) if n.startswith(f"{effect}.")}
+
+
+def _clip(effect: Effect, full_name: str, value: float) -> float:
+    prm = effect.param(full_name.partition(".")[2])
+    return float(min(max(value, prm.lower), prm.upper))
+
+
+def gauss_newton(
+    design: TorqueDesign, structure: Structure, reg: Regression, effect: str, n_eff: float
+) -> tuple[Structure, Regression]:
+    """Refine the nonlinear parameters of generic ``effect`` held in ``structure`` (whose
+    regression is ``reg``): each step regresses on columns for every parameter, linearized at the
+    current estimate, and is kept while the error of the held regression falls."""
+    eff = get_effect(effect)
+    nonlinear = nonlinear_params(eff)
+    for _ in range(GAUSS_NEWTON_STEPS if nonlinear else 0):
+        at = {**structure.settings, **_own(reg, effect)}
+        moved = _own(design.fit(replace(structure, settings=at, linearized=effect), n_eff, cv=False), effect)
+        settings = {**structure.settings, **{n: _clip(eff, n, moved[n]) for n in nonlinear}}
+        nxt = replace(structure, settings=settings)
+        reg_next = design.fit(nxt, n_eff, cv=False)
+        if not reg_next.sse < reg.sse:
+            break
+        structure, reg = nxt, reg_next
+    return structure, reg
+
+
+def held_stderr(
+    design: TorqueDesign, structure: Structure, reg: Regression, effect: str, n_eff: float
+) -> dict[str, float]:
+    """Standard errors of the nonlinear parameters of ``effect`` held in ``structure``: from the
+    regression linearized at the final values (the Gauss–Newton covariance)."""
+    nonlinear = nonlinear_params(get_effect(effect))
+    if not nonlinear:
+        return {}
+    at = {**structure.settings, **_own(reg, effect)}
+    lin = design.fit(replace(structure, settings=at, linearized=effect), n_eff, cv=False)
+    return {n: float(math.sqrt(max(lin.cov[i, i], 0.0))) for i, n in enumerate(lin.names) if n in nonlinear}
+
+
 __all__ = [
     "columns",
     "defaults",
     "derivative",
     "fitted_params",
+    "gauss_newton",
     "held_params",
+    "held_stderr",
     "linear_params",
     "nonlinear_params",
     "param_count",
