@@ -122,6 +122,7 @@ def _switched_speed_term(params: Mapping[str, float], theta: FloatArray, omega: 
         (_effect(kind="input"), "kind 'input'"),
         (_effect(search={"width": (0.1, 0.2)}), "not one of its parameters"),
         (_effect(search={"k": (0.5, 2.0)}), "leaves its bounds"),
+        (_effect(evidence="slope {slope:.3g}"), "evidence template"),
     ],
     ids=[
         "builtin-name",
@@ -134,6 +135,7 @@ def _switched_speed_term(params: Mapping[str, float], theta: FloatArray, omega: 
         "not-a-torque",
         "search-unknown",
         "search-out-of-bounds",
+        "evidence-template",
     ],
 )
 def test_a_malformed_effect_is_refused_with_a_clear_message(effect: Effect, message: str) -> None:

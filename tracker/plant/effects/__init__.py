@@ -115,7 +115,10 @@ def get_effect(name: str) -> Effect:
         return CATALOGUE[name]
     except KeyError:
         known = ", ".join(CATALOGUE)
-        raise ConfigError(f"unknown effect {name!r}; known effects: {known}") from None
+        raise ConfigError(
+            f"unknown effect {name!r}; known effects: {known} (a site's own effect loads through "
+            f"{ENV_VAR}: docs/workbench.md, 'Your own effect')"
+        ) from None
 
 
 def get_param(full_name: str) -> Param:
@@ -151,6 +154,14 @@ def _check_shape(effect: Effect, where: str) -> None:
                 "below upper"
             )
         p.check(p.default, f"{where}: default of {effect.name}")
+    if isinstance(effect.evidence, str):
+        try:
+            effect.evidence.format(**{p.name: p.default for p in effect.params}, range_rad=1.0)
+        except (KeyError, IndexError, ValueError) as exc:
+            raise ConfigError(
+                f"{where}: evidence template of {effect.name} cannot be filled from its parameters "
+                f"and range_rad: {exc!r}"
+            ) from None
     for name, grid in effect.search.items():
         if name not in seen:
             raise ConfigError(f"{where}: {effect.name} searches {name!r}, which is not one of its parameters")
