@@ -38,7 +38,9 @@ class Service:
         self.lock = ControlLock(ttl_s=settings.control_lock_ttl_s)
         self.hub = TelemetryHub(rate_hz=settings.telemetry_rate_hz)
         self.jobs = JobRunner(self.db, max_running=settings.max_running_jobs)
-        self.work = WorkPool(settings.heavy_workers, settings.heavy_queue, settings.heavy_per_key)
+        self.work = WorkPool(
+            settings.heavy_workers, settings.heavy_queue, settings.heavy_per_key, settings.effects
+        )
         self.bad_keys = BadKeyBackoff(
             settings.bad_key_limit, settings.bad_key_window_s, settings.bad_key_max_block_s
         )

@@ -25,11 +25,20 @@ from app.errors import TooManyRequests, Unavailable
 T = TypeVar("T")
 
 
+def load_site_effects(effects: str) -> None:
+    """A worker's start: the effects setting's plug-ins join its catalogue, as in the service
+    (a spawned process imports the engine afresh; TRACKER_EFFECTS it reads by itself)."""
+    from tracker.plant.effects import load_effect_modules
+
+    load_effect_modules(effects, "effects setting")
+
+
 class WorkPool:
     """Runs heavy functions in worker processes, a bounded number at a time."""
 
-    def __init__(self, workers: int = 1, queue: int = 4, per_key: int = 2) -> None:
+    def __init__(self, workers: int = 1, queue: int = 4, per_key: int = 2, effects: str = "") -> None:
         self.workers, self.queue, self.per_key = workers, queue, per_key
+        self.effects = effects  # the site's effect plug-ins: each spawned worker loads them too
         self._executor: ProcessPoolExecutor | None = None
         self._admitted = 0
         self._by_key: Counter[int] = Counter()
@@ -93,7 +102,9 @@ class WorkPool:
     def _pool(self) -> ProcessPoolExecutor:
         if self._executor is None:
             spawn = multiprocessing.get_context("spawn")
-            self._executor = ProcessPoolExecutor(self.workers, mp_context=spawn)
+            self._executor = ProcessPoolExecutor(
+                self.workers, mp_context=spawn, initializer=load_site_effects, initargs=(self.effects,)
+            )
         return self._executor
 
     def _restart(self) -> None:

@@ -209,6 +209,22 @@ def test_heavy_work_runs_in_another_process() -> None:
     assert asyncio.run(pid()) != os.getpid()
 
 
+def test_heavy_work_knows_the_sites_own_effects() -> None:
+    """A worker is a fresh process: the effects setting's plug-ins must be loaded there too."""
+    cable = Path(__file__).resolve().parents[2] / "examples" / "effects" / "cable_drag.py"
+
+    from tracker.plant.effects import optional_effects
+
+    async def names() -> tuple[str, ...]:
+        pool = WorkPool(workers=1, effects=str(cable))
+        try:
+            return await pool.run(_principal(1), optional_effects)
+        finally:
+            pool.close()
+
+    assert asyncio.run(names())[-1] == "cable_drag"
+
+
 async def test_heavy_work_is_capped_per_key_and_in_total() -> None:
     """Bug: no cap on concurrent work; now 429 with a Retry-After past the caps."""
     pool = WorkPool(workers=1, queue=1, per_key=1)
