@@ -34,8 +34,16 @@ class Settings(BaseSettings):
     driver: str = Field(
         "sim",
         description="what the engine steers: 'sim' (the simulated rig), 'visca+udp://HOST[:52381]' "
-        "(Sony VISCA over IP) or 'visca+tcp://HOST:PORT' (raw VISCA, e.g. PTZOptics on 5678)",
+        "(Sony VISCA over IP), 'visca+tcp://HOST:PORT' (raw VISCA, e.g. PTZOptics on 5678) or "
+        "'serial:///dev/ttyUSB0[?baud=115200&rate=HZ&watchdog_ms=100]' (a DC rig's motor controller "
+        "board: docs/serial-protocol.md)",
     )
+    motor_gear_ratio_pan: float = Field(
+        17.01, gt=0.0, le=10_000.0,
+        description="serial rig: motor revolutions per pan revolution (the seed's 6.3:1 gear x 2.7:1 "
+                    "pulley); the board's counts per motor revolution come from its hello")
+    motor_gear_ratio_tilt: float = Field(
+        17.01, gt=0.0, le=10_000.0, description="serial rig: motor revolutions per tilt revolution")
     camera_profile: str = Field(
         "generic", description="PTZ camera profile (tracker/drivers/camera_profiles.toml): "
         "generic, sony_srg, sony_evi_d70, ptzoptics")
