@@ -1,7 +1,7 @@
 """The control loop's own clock and thread: deadlines on ``time.perf_counter``, lateness kept.
 
-A :class:`PacedLoop` calls ``step()`` in its own thread at ``period_s``: tick k is due at
-``start + k·period``; the thread sleeps until ``spin_s`` before that and busy-waits the rest
+A :class:`PacedLoop` calls ``step()`` in its own thread at ``period_s``: ticks are due at whole
+multiples of the period on ``time.perf_counter``; the thread sleeps until ``spin_s`` before that and busy-waits the rest
 (``time.sleep`` overshoots by 50-100 µs on Linux). The loop catches up a late tick by running
 the next ones at once; more than ``max_behind_s`` behind it drops the missed ticks and starts
 afresh from now (an engine on the twin then runs behind the wall clock by that much).
@@ -15,6 +15,7 @@ after that long, so a busy web thread delays a tick by about that much, not 5 ms
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
@@ -136,14 +137,16 @@ class PacedLoop:
         error: BaseException | None = None
         period = self.stats.period_s
         try:
-            due = time.perf_counter()
+            # Ticks fall on the grid of whole periods of perf_counter: a driver that paces its
+            # own samples on that grid (tracker.drivers.serial_motor) then agrees with the loop.
+            due = math.ceil(time.perf_counter() / period) * period
             while not self._stop.is_set():
                 sleep_until(due, self._spin)
                 start = time.perf_counter()
                 if start - due > self._max_behind:
                     self.stats.restarts += 1
                     self.stats.record(start - due)
-                    due = start
+                    due = math.floor(start / period) * period
                 else:
                     self.stats.record(start - due)
                 if not self._step():

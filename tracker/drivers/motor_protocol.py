@@ -34,13 +34,26 @@ FLAG_ARMED = 0x01
 FLAG_WATCHDOG = 0x02  # the watchdog zeroed the command and disarmed; cleared by ``A 1``
 
 
-def crc8(data: bytes) -> int:
-    """CRC-8/SMBUS (poly 0x07, init 0x00) of ``data``: the same few lines as in the board's C."""
+def crc8_bitwise(data: bytes) -> int:
+    """CRC-8/SMBUS (poly 0x07, init 0x00) of ``data``, bit by bit: the board's few lines of C."""
     crc = 0
     for byte in data:
         crc ^= byte
         for _ in range(8):
             crc = ((crc << 1) ^ 0x07) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
+_CRC_TABLE = tuple(crc8_bitwise(bytes([i])) for i in range(256))
+
+
+def crc8(data: bytes) -> int:
+    """CRC-8/SMBUS of ``data`` by table (the same value; ~10x faster in Python, which matters at
+    four checksums per sample)."""
+    crc = 0
+    table = _CRC_TABLE
+    for byte in data:
+        crc = table[crc ^ byte]
     return crc
 
 

@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
-import select
 import threading
 import time
 from collections import deque
@@ -36,6 +34,7 @@ from typing import Any
 
 from tracker.drivers import motor_protocol as mp
 from tracker.drivers.motor import AXES
+from tracker.drivers.serial_port import ReplyTimeout, SerialPort
 from tracker.drivers.sim import HARD_STOP_MARGIN_RAD
 from tracker.drivers.spec import DriverSpec
 from tracker.errors import ConfigError, DriverFault
@@ -44,68 +43,13 @@ from tracker.realtime import sleep_until
 BACKOFF_START_S = 0.25
 BACKOFF_MAX_S = 5.0
 IDLE_READ_S = 0.1
+MAX_BEHIND_S = 0.1
 HELLO_WAIT_S = 3.0  # an Arduino restarts when its port opens: ~2 s of boot loader first
 RTT_WINDOW = 500
 
 
-class _Timeout(Exception):
-    pass
-
-
 class _BoardError(Exception):
     pass
-
-
-class SerialPort:
-    """A raw serial port opened with pyserial, read and written through its file descriptor."""
-
-    def __init__(self, path: str, baud: int) -> None:
-        import serial  # pyserial
-
-        try:
-            self._serial = serial.Serial(path, baudrate=baud, timeout=0, exclusive=True)
-        except (serial.SerialException, ValueError) as exc:
-            raise OSError(f"cannot open {path}: {exc}") from None
-        self.fd: int = self._serial.fileno()
-        self._buf = bytearray()
-        self._serial.reset_input_buffer()
-
-    def write(self, data: bytes) -> None:
-        view = memoryview(data)
-        while view:
-            n = os.write(self.fd, view)
-            view = view[n:]
-
-    def read_line(self, deadline_s: float) -> bytes:
-        """The next line (with its newline); _Timeout at ``deadline_s`` (perf_counter), OSError
-        when the port is gone."""
-        while True:
-            end = self._buf.find(b"\n")
-            if end >= 0:
-                line = bytes(self._buf[: end + 1])
-                del self._buf[: end + 1]
-                return line
-            if len(self._buf) > 4 * mp.MAX_REPLY:
-                self._buf.clear()  # noise without newlines
-            remaining = deadline_s - time.perf_counter()
-            if remaining <= 0:
-                raise _Timeout
-            ready, _, _ = select.select([self.fd], [], [], remaining)
-            if ready:
-                data = os.read(self.fd, 4096)
-                if not data:
-                    raise OSError("the port hung up")
-                self._buf += data
-
-    def flush_input(self) -> None:
-        self._buf.clear()
-        with contextlib.suppress(OSError):
-            while select.select([self.fd], [], [], 0)[0] and os.read(self.fd, 4096):
-                pass
-
-    def close(self) -> None:
-        with contextlib.suppress(Exception):
-            self._serial.close()
 
 
 class SerialMotorDriver:
@@ -219,17 +163,23 @@ class SerialMotorDriver:
         return self._angle[self._check_axis(axis)]
 
     def tick(self) -> None:
-        """Wait for the sample's due time, then send the command and read the counts."""
+        """Wait for the sample's due time, then send the command and read the counts.
+
+        Samples are due on the grid of whole periods of ``time.perf_counter`` (the engine's
+        loop paces its chunks on the same grid, so the two clocks agree); a late one goes at
+        once, and more than ``MAX_BEHIND_S`` behind the schedule restarts at the last grid
+        point."""
         now = time.perf_counter()
-        if self._next_due is None or now - self._next_due > self._dt:
-            if self._next_due is not None:
-                self.late_samples += 1
-                self.max_lateness_s = max(self.max_lateness_s, now - self._next_due)
-            self._next_due = now
-        else:
-            sleep_until(self._next_due)
-            self.max_lateness_s = max(self.max_lateness_s, time.perf_counter() - self._next_due)
-        self._next_due += self._dt
+        due = self._next_due
+        if due is None or now - due > MAX_BEHIND_S:
+            due = math.floor(now / self._dt) * self._dt
+        elif now < due:
+            sleep_until(due, 0.0)  # no busy-wait: the line's own jitter is larger
+        late = time.perf_counter() - due
+        if late > self._dt:
+            self.late_samples += 1
+        self.max_lateness_s = max(self.max_lateness_s, late)
+        self._next_due = due + self._dt
         self._sample_times.append(time.perf_counter())
         with self._lock:
             if self._port is not None and self._state == "connected":
@@ -276,7 +226,7 @@ class SerialMotorDriver:
             self._thread = None
         with self._lock:
             if self._port is not None and self._state == "connected":
-                with contextlib.suppress(OSError, _Timeout, _BoardError, DriverFault):
+                with contextlib.suppress(OSError, ReplyTimeout, _BoardError, DriverFault):
                     self._request("A", 0)
             self._drop_port()
         self._state = "stopped"
@@ -327,7 +277,7 @@ class SerialMotorDriver:
                 self.errors += 1
                 self._last_error = f"garbled reply: {exc.text}"
                 continue
-            except _Timeout:
+            except ReplyTimeout:
                 self.timeouts += 1
                 raise
             if line.verb == "ERR" and line.seq in (seq, None):
@@ -357,7 +307,7 @@ class SerialMotorDriver:
             else:
                 reply = self._request("E")
             self._absorb(mp.parse_counts(reply, where), expect_armed)
-        except _Timeout:
+        except ReplyTimeout:
             if time.perf_counter() - self._last_ok > self._link_lost_s:
                 self._lose(f"no answer for {self._link_lost_s:g} s")
         except (OSError, DriverFault) as exc:
@@ -417,7 +367,7 @@ class SerialMotorDriver:
             try:
                 self._connect()
                 backoff = BACKOFF_START_S
-            except (OSError, _Timeout, _BoardError, DriverFault) as exc:
+            except (OSError, ReplyTimeout, _BoardError, DriverFault) as exc:
                 self._last_error = str(exc) or type(exc).__name__.strip("_").lower()
                 with self._lock:
                     self._drop_port()
@@ -456,7 +406,7 @@ class SerialMotorDriver:
             self._port.flush_input()
             try:
                 return mp.parse_hello(self._request("H", timeout_s=0.25), self.spec.url)
-            except (_Timeout, _BoardError):
+            except (ReplyTimeout, _BoardError):
                 if time.perf_counter() > end or self._closing.is_set():
                     raise DriverFault(f"{self.spec.url}: no hello from the board") from None
 
