@@ -1,10 +1,11 @@
 """The control loop's own clock and thread: deadlines on ``time.perf_counter``, lateness kept.
 
 A :class:`PacedLoop` calls ``step()`` in its own thread at ``period_s``: ticks are due at whole
-multiples of the period on ``time.perf_counter``; the thread sleeps until ``spin_s`` before that and busy-waits the rest
-(``time.sleep`` overshoots by 50-100 µs on Linux). The loop catches up a late tick by running
-the next ones at once; more than ``max_behind_s`` behind it drops the missed ticks and starts
-afresh from now (an engine on the twin then runs behind the wall clock by that much).
+multiples of the period on ``time.perf_counter``; the thread sleeps until ``spin_s`` before
+that and busy-waits the rest (``time.sleep`` overshoots by 50-100 µs on Linux). The loop
+catches up a late tick by running the next ones at once; more than ``max_behind_s`` behind it
+drops the missed ticks and starts afresh (an engine on the twin then runs behind the wall
+clock by that much).
 
 Timing (:class:`LoopTiming`): a tick's *lateness* is how long after its due time it started;
 an *overrun* is a tick that started after the next one was due (late by a whole period or
