@@ -98,6 +98,9 @@ class MotorBoard:
                               (counts_per_rev, counts_per_rev), vmax_mv, WATCHDOG_DEFAULT_MS,
                               secrets.token_hex(4))
         self._counts_per_rad = counts_per_rev * gear_ratio / (2 * math.pi)
+        # Counts start at 0 wherever the rig stands at power-up (a restarted board on the same
+        # twin, as a real board reset on the same mount, counts from there).
+        self._zero = {a: self.twin.motor_rad(a) for a in AXES}
         self._clock = clock
         self._t0 = clock()
         self._k = 0  # twin samples done
@@ -116,8 +119,8 @@ class MotorBoard:
         return self._clock() - self._t0
 
     def counts(self, axis: str) -> int:
-        """The encoder count of ``axis`` now (quadrature, motor shaft, 0 at power-up)."""
-        return int(math.floor(self.twin.motor_rad(axis) * self._counts_per_rad + 0.5))
+        """The encoder count of ``axis`` (quadrature, motor shaft, 0 where it stood at power-up)."""
+        return int(math.floor((self.twin.motor_rad(axis) - self._zero[axis]) * self._counts_per_rad + 0.5))
 
     def catch_up(self) -> None:
         """Advance the twin to now (the watchdog included)."""

@@ -101,7 +101,7 @@ class SerialMotorDriver:
         self._board_armed = False
         self._faults: list[str] = []
         self._next_due: float | None = None
-        self._last_ok = 0.0
+        self._failing_since: float | None = None  # the first unanswered request of a run of them
         self._last_exchange = 0.0
         self._last_error: str | None = None
         self._rtts: deque[float] = deque(maxlen=RTT_WINDOW)
@@ -288,7 +288,8 @@ class SerialMotorDriver:
                 now = time.perf_counter()
                 self._rtts.append(now - sent)
                 self.exchanges += 1
-                self._last_ok = self._last_exchange = now
+                self._last_exchange = now
+                self._failing_since = None
                 return line
 
     def _cycle(self, idle: bool) -> None:
@@ -308,7 +309,12 @@ class SerialMotorDriver:
                 reply = self._request("E")
             self._absorb(mp.parse_counts(reply, where), expect_armed)
         except ReplyTimeout:
-            if time.perf_counter() - self._last_ok > self._link_lost_s:
+            # Lost when requests have gone unanswered for link_lost_s, not when this process
+            # was too busy to ask (a stall of our own is not the board's silence).
+            now = time.perf_counter()
+            if self._failing_since is None:
+                self._failing_since = now - self._timeout
+            elif now - self._failing_since > self._link_lost_s:
                 self._lose(f"no answer for {self._link_lost_s:g} s")
         except (OSError, DriverFault) as exc:
             self._lose(str(exc))
@@ -394,7 +400,7 @@ class SerialMotorDriver:
                     self._ref[a] = (c, self._angle[a])
             self.re_referenced += int(rebooted)
             self._absorb(counts)
-            self._last_ok = time.perf_counter()
+            self._failing_since = None
             self._next_due = None
             self.connects += 1
             self._state = "connected"
