@@ -112,7 +112,8 @@ def build_engine(settings: Settings) -> Any:
     from tracker.engine import Engine, EngineConfig
 
     config = EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg,
-                          guard_margin_rad=math.radians(settings.guard_margin_deg))
+                          guard_margin_rad=math.radians(settings.guard_margin_deg),
+                          chunk_s=settings.control_chunk_ms / 1e3)
     return Engine(build_live_driver(settings), config)
 
 
