@@ -105,6 +105,9 @@ class Settings(BaseSettings):
     bad_key_window_s: float = Field(60.0, gt=0.0)
     bad_key_max_block_s: float = Field(
         600.0, ge=1.0, description="each block doubles from 5 s up to this while the bad keys go on")
+    job_workers: int = Field(
+        1, ge=1, le=8, description="worker processes for jobs (friction-ID), with progress and cancel; "
+                                   "they never share the control loop's interpreter")
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @field_validator("audio_input")

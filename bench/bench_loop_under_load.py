@@ -17,7 +17,6 @@ machine, so their frame gaps include this process's own delays.
 from __future__ import annotations
 
 import argparse
-import array
 import asyncio
 import json
 import os
@@ -90,8 +89,12 @@ async def workbench(api: str, h: dict[str, str], csv: str, n: int, log: list[str
     async with httpx.AsyncClient(timeout=300.0) as c:
         for i in range(n):
             t0 = time.perf_counter()
-            r = await c.post(f"{api}/workbench/measurements", headers=h, data={"axis": "pan"},
-                             files={"file": (f"bench{i}.csv", csv.encode(), "text/csv")})
+            r = await c.post(
+                f"{api}/workbench/measurements",
+                headers=h,
+                data={"axis": "pan"},
+                files={"file": (f"bench{i}.csv", csv.encode(), "text/csv")},
+            )
             r.raise_for_status()
             mid = r.json()["id"]
             t1 = time.perf_counter()
@@ -126,10 +129,14 @@ def tick_figures(ticks: np.ndarray, t0: float, t1: float, period_s: float) -> di
     # Lateness against the loop's own grid: the earliest tick (relative to k·period) is on time.
     k = np.arange(sel.size)
     late = (sel - k * period_s) - np.min(sel - k * period_s)
-    return {"ticks": int(sel.size), "max_gap_ms": 1e3 * float(gaps.max()),
-            "p99_gap_ms": 1e3 * float(np.percentile(gaps, 99)),
-            "late_2ms": int(np.sum(gaps > period_s + 2e-3)), "overruns": int(np.sum(gaps > 2 * period_s)),
-            "drift_ms": 1e3 * float(late[-1])}
+    return {
+        "ticks": int(sel.size),
+        "max_gap_ms": 1e3 * float(gaps.max()),
+        "p99_gap_ms": 1e3 * float(np.percentile(gaps, 99)),
+        "late_2ms": int(np.sum(gaps > period_s + 2e-3)),
+        "overruns": int(np.sum(gaps > 2 * period_s)),
+        "drift_ms": 1e3 * float(late[-1]),
+    }
 
 
 def frame_figures(viewers: list[Viewer], t0: float, t1: float) -> dict[str, float]:
@@ -147,9 +154,13 @@ def frame_figures(viewers: list[Viewer], t0: float, t1: float) -> dict[str, floa
     if not gaps:
         return {"frames": frames}
     all_gaps = np.concatenate(gaps)
-    return {"frames": frames, "rate_hz_per_viewer": frames / max(len(viewers), 1) / (t1 - t0),
-            "max_gap_ms": 1e3 * float(all_gaps.max()), "p99_gap_ms": 1e3 * float(np.percentile(all_gaps, 99)),
-            "median_viewer_max_gap_ms": 1e3 * float(np.median(per_viewer_max))}
+    return {
+        "frames": frames,
+        "rate_hz_per_viewer": frames / max(len(viewers), 1) / (t1 - t0),
+        "max_gap_ms": 1e3 * float(all_gaps.max()),
+        "p99_gap_ms": 1e3 * float(np.percentile(all_gaps, 99)),
+        "median_viewer_max_gap_ms": 1e3 * float(np.median(per_viewer_max)),
+    }
 
 
 async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: str) -> dict[str, Any]:
@@ -168,7 +179,9 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
     job = asyncio.create_task(workbench(api, h, csv, args.diagnoses, log))
     rest_s = await rest_burst(api, h, args.rest, 20)
     try:
-        await asyncio.wait_for(asyncio.shield(job), timeout=max(0.0, args.seconds - (time.perf_counter() - t_load0)))
+        await asyncio.wait_for(
+            asyncio.shield(job), timeout=max(0.0, args.seconds - (time.perf_counter() - t_load0))
+        )
     except TimeoutError:
         pass
     t_load1 = time.perf_counter()
@@ -180,8 +193,10 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
         out["status_loop"] = (await c.get(f"{api}/status", headers=h)).json().get("loop")
     stop.set()
     await asyncio.gather(*tasks, return_exceptions=True)
-    if not job.done():
-        job.cancel()
+    try:  # let the service finish its diagnosis before it is stopped (bounded)
+        await asyncio.wait_for(job, timeout=300.0)
+    except (TimeoutError, httpx.HTTPError):
+        pass
     out["viewers"] = views
     return out
 
@@ -197,19 +212,33 @@ def main() -> int:
     parser.add_argument("--diagnoses", type=int, default=2, help="uploads + diagnoses, one after the other")
     parser.add_argument("--measurement-s", type=float, default=30.0, help="length of the uploaded log (s)")
     args = parser.parse_args()
-    args.viewers, args.rest, args.diagnoses = min(args.viewers, 200), min(args.rest, 5000), min(args.diagnoses, 5)
+    args.viewers, args.rest, args.diagnoses = (
+        min(args.viewers, 200),
+        min(args.rest, 5000),
+        min(args.diagnoses, 5),
+    )
     csv = measurement_csv(args.measurement_s)
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
         probe = Path(tmp) / "bench_probe.py"
         probe.write_text(PROBE)
         ticks_file = Path(tmp) / "ticks.bin"
-        env = {**os.environ, "PYTHONPATH": f"{args.tree}{os.pathsep}{tmp}", "BENCH_TICKS": str(ticks_file),
-               "TRACKER_DATA_DIR": str(Path(tmp) / "data"), "TRACKER_VIEWER_ENABLED": "false",
-               "TRACKER_AUDIO_ENABLED": "false", "TRACKER_LOG_LEVEL": "warning",
-               "TRACKER_CONTROL_CHUNK_MS": f"{args.chunk_ms:g}"}
-        proc = subprocess.Popen([sys.executable, str(probe), "serve", "--host", "127.0.0.1", "--port", str(port)],
-                                env=env, cwd=tmp, stdout=subprocess.DEVNULL)
+        env = {
+            **os.environ,
+            "PYTHONPATH": f"{args.tree}{os.pathsep}{tmp}",
+            "BENCH_TICKS": str(ticks_file),
+            "TRACKER_DATA_DIR": str(Path(tmp) / "data"),
+            "TRACKER_VIEWER_ENABLED": "false",
+            "TRACKER_AUDIO_ENABLED": "false",
+            "TRACKER_LOG_LEVEL": "warning",
+            "TRACKER_CONTROL_CHUNK_MS": f"{args.chunk_ms:g}",
+        }
+        proc = subprocess.Popen(
+            [sys.executable, str(probe), "serve", "--host", "127.0.0.1", "--port", str(port)],
+            env=env,
+            cwd=tmp,
+            stdout=subprocess.DEVNULL,
+        )
         api = f"http://127.0.0.1:{port}/api/v1"
         try:
             end = time.monotonic() + 180.0
@@ -226,13 +255,21 @@ def main() -> int:
             res = asyncio.run(bench(args, api, f"ws://127.0.0.1:{port}/api/v1/telemetry", key, csv))
         finally:
             proc.send_signal(signal.SIGINT)
-            proc.wait(30)
-        ticks = np.frombuffer(ticks_file.read_bytes(), dtype=np.float64) if ticks_file.exists() else np.zeros(0)
+            try:
+                proc.wait(60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(10)
+        ticks = (
+            np.frombuffer(ticks_file.read_bytes(), dtype=np.float64) if ticks_file.exists() else np.zeros(0)
+        )
     period = args.chunk_ms / 1e3
     load_avg = os.getloadavg()
-    print(f"tree {args.tree}, tick {args.chunk_ms:g} ms, {args.viewers} viewers, {args.rest} REST calls "
-          f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
-          f"{'done' if res['job_done'] else 'still running at the end'}; load average {load_avg[0]:.1f}")
+    print(
+        f"tree {args.tree}, tick {args.chunk_ms:g} ms, {args.viewers} viewers, {args.rest} REST calls "
+        f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
+        f"{'done' if res['job_done'] else 'still running at the end'}; load average {load_avg[0]:.1f}"
+    )
     for line in res["log"]:
         print(f"  {line}")
     for phase in ("idle", "load"):
