@@ -162,15 +162,6 @@ def random_practice_model(axis: str, seed: int) -> Any:
     return random_hidden_model(axis, [effect], seed)
 
 
-def run_friction_id(driver: Any, axis: str, progress: Any, cancel: Any) -> dict[str, Any]:
-    """The friction-ID experiment on ``driver`` (JSON-ready result with the torque–velocity data)."""
-    from tracker.workbench import friction_id
-
-    result = friction_id.run_friction_id(driver, axis=axis, progress=progress, cancel=cancel)
-    out: dict[str, Any] = result.to_dict()
-    return out
-
-
 def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:
     """Wire the simulated room's talker tracker in as the engine's target source.
 
