@@ -46,9 +46,10 @@ engine_module.Engine.step_chunk = step_chunk
 def _dump():
     with open(os.environ["BENCH_TICKS"], "wb") as f:
         _ticks.tofile(f)
-atexit.register(_dump)
-from tracker.cli import main
-sys.exit(main(sys.argv[1:]))
+if __name__ == "__main__":  # not in the service's spawned worker processes
+    atexit.register(_dump)
+    from tracker.cli import main
+    sys.exit(main(sys.argv[1:]))
 """
 
 
