@@ -113,7 +113,8 @@ def build_engine(settings: Settings) -> Any:
 
     config = EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg,
                           guard_margin_rad=math.radians(settings.guard_margin_deg),
-                          chunk_s=settings.control_chunk_ms / 1e3)
+                          chunk_s=settings.control_chunk_ms / 1e3,
+                          loop_priority=settings.control_loop_priority)
     return Engine(build_live_driver(settings), config)
 
 

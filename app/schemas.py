@@ -36,6 +36,7 @@ class LoopOut(BaseModel):
     overruns: int = Field(description="ticks that started a whole period (or more) late")
     restarts: int = Field(description="times the loop fell over 0.1 s behind and dropped ticks")
     in_thread: bool = Field(description="the loop runs in its own thread (real time)")
+    priority: int = Field(0, description="the loop thread's SCHED_FIFO priority (0: normal scheduling)")
 
 
 class StatusOut(BaseModel):

@@ -77,6 +77,10 @@ class Settings(BaseSettings):
         10.0, ge=1.0, le=50.0,
         description="the control loop's tick: each tick runs this many ms of 1 kHz samples (10: 100 "
                     "ticks a second; 1: one sample a tick) and publishes one telemetry snapshot")
+    control_loop_priority: int = Field(
+        0, ge=0, le=99,
+        description="SCHED_FIFO priority of the control loop's thread on Linux (0: normal scheduling); "
+                    "needs CAP_SYS_NICE (systemd: CPUSchedulingPolicy/LimitRTPRIO), ignored if refused")
     telemetry_rate_hz: float = Field(100.0, ge=50.0, le=1000.0, description="WebSocket frame rate")
     jog_timeout_s: float = Field(0.5, gt=0.0, le=5.0, description="a jog stops by itself after this")
     control_lock_ttl_s: float = Field(30.0, gt=0.0, description="manual control lapses when idle this long")

@@ -206,6 +206,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tree", default=str(ROOT), help="checkout to run the service from")
     parser.add_argument("--chunk-ms", type=float, default=10.0, help="the control tick (ms)")
+    parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the loop thread")
     parser.add_argument("--seconds", type=float, default=20.0, help="longest load phase (s)")
     parser.add_argument("--idle-seconds", type=float, default=5.0)
     parser.add_argument("--viewers", type=int, default=50)
@@ -233,6 +234,7 @@ def main() -> int:
             "TRACKER_AUDIO_ENABLED": "false",
             "TRACKER_LOG_LEVEL": "warning",
             "TRACKER_CONTROL_CHUNK_MS": f"{args.chunk_ms:g}",
+            "TRACKER_CONTROL_LOOP_PRIORITY": str(args.priority),
         }
         proc = subprocess.Popen(
             [sys.executable, str(probe), "serve", "--host", "127.0.0.1", "--port", str(port)],
@@ -267,7 +269,8 @@ def main() -> int:
     period = args.chunk_ms / 1e3
     load_avg = os.getloadavg()
     print(
-        f"tree {args.tree}, tick {args.chunk_ms:g} ms, {args.viewers} viewers, {args.rest} REST calls "
+        f"tree {args.tree}, tick {args.chunk_ms:g} ms, priority {args.priority}, {args.viewers} viewers, "
+        f"{args.rest} REST calls "
         f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
         f"{'done' if res['job_done'] else 'still running at the end'}; load average {load_avg[0]:.1f}"
     )

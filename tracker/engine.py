@@ -75,6 +75,8 @@ class EngineConfig:
     # The site's mount margin: the soft-limit guard's line sits this far inside the limits
     # (tracker.control.limits: a belt the model does not know needs its twist at full torque).
     guard_margin_rad: float = GUARD_MARGIN_RAD
+    # SCHED_FIFO priority of the real-time loop's thread (0: the normal class; tracker.realtime).
+    loop_priority: int = 0
 
     def __post_init__(self) -> None:
         for a in AXES:  # a bad margin is refused here, naming itself, not at the first chunk
@@ -371,7 +373,8 @@ class Engine:
             except RuntimeError:  # the event loop is gone: nobody waits
                 pass
 
-        paced = PacedLoop(self._n_chunk * self._dt, step, on_exit=on_exit, name="engine-loop")
+        paced = PacedLoop(self._n_chunk * self._dt, step, on_exit=on_exit, name="engine-loop",
+                          priority=self.config.loop_priority)
         self._paced = paced
         paced.start()
         try:

@@ -12,11 +12,17 @@ an *overrun* is a tick that started after the next one was due (late by a whole 
 more). While the loop runs, the interpreter's switch interval is lowered to ``switch_interval_s``
 (default 0.5 ms, Python's is 5 ms): a thread waiting for the GIL asks its holder to let go
 after that long, so a busy web thread delays a tick by about that much, not 5 ms.
+
+``priority`` (1-99, Linux) puts the loop's thread in the SCHED_FIFO real-time class, so the
+kernel runs it as soon as it wakes even on a loaded machine (it needs CAP_SYS_NICE, e.g.
+systemd's ``CPUSchedulingPolicy``/``LimitRTPRIO`` or root; refused, the loop runs as before and
+``LoopTiming.priority`` says 0). It does not make the GIL come any sooner.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import sys
 import threading
 import time
@@ -57,6 +63,7 @@ class LoopTiming:
     restarts: int  # times the loop fell more than max_behind_s behind and started afresh
     running: bool
     in_thread: bool
+    priority: int = 0  # the SCHED_FIFO priority the loop's thread got (0: the normal class)
 
 
 class TickStats:
@@ -81,10 +88,10 @@ class TickStats:
         if late >= self.period_s:
             self.overruns += 1
 
-    def snapshot(self, running: bool, in_thread: bool) -> LoopTiming:
+    def snapshot(self, running: bool, in_thread: bool, priority: int = 0) -> LoopTiming:
         mean = self.total / self.ticks if self.ticks else 0.0
         return LoopTiming(self.period_s, self.ticks, self.last, self.max, mean, self.overruns,
-                          self.restarts, running, in_thread)
+                          self.restarts, running, in_thread, priority)
 
 
 class PacedLoop:
@@ -103,6 +110,7 @@ class PacedLoop:
         spin_s: float = SPIN_S,
         max_behind_s: float = MAX_BEHIND_S,
         switch_interval_s: float | None = SWITCH_INTERVAL_S,
+        priority: int = 0,
         name: str = "control-loop",
     ) -> None:
         if not (period_s > 0 and spin_s >= 0 and max_behind_s > 0):
@@ -111,6 +119,8 @@ class PacedLoop:
         self.stats = TickStats(period_s)
         self._step, self._on_exit = step, on_exit
         self._spin, self._max_behind, self._switch = spin_s, max_behind_s, switch_interval_s
+        self._want_priority, self.priority = int(priority), 0
+        self.priority_error: str | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
@@ -129,7 +139,16 @@ class PacedLoop:
         self._thread.join(timeout_s)
 
     def timing(self) -> LoopTiming:
-        return self.stats.snapshot(self.running, True)
+        return self.stats.snapshot(self.running, True, self.priority)
+
+    def _raise_priority(self) -> None:
+        if self._want_priority <= 0:
+            return
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self._want_priority))  # this thread
+            self.priority = self._want_priority
+        except (AttributeError, OSError) as exc:  # not Linux, or not allowed: run as before
+            self.priority_error = str(exc)
 
     def _run(self) -> None:
         old_switch = sys.getswitchinterval()
@@ -137,6 +156,7 @@ class PacedLoop:
             sys.setswitchinterval(self._switch)
         error: BaseException | None = None
         period = self.stats.period_s
+        self._raise_priority()
         try:
             # Ticks fall on the grid of whole periods of perf_counter: a driver that paces its
             # own samples on that grid (tracker.drivers.serial_motor) then agrees with the loop.

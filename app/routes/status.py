@@ -47,7 +47,7 @@ def loop_of(svc: Service) -> LoopOut | None:
     t = timing()
     return LoopOut(period_ms=1e3 * t.period_s, ticks=t.ticks, last_lateness_ms=1e3 * t.last_lateness_s,
                    max_lateness_ms=1e3 * t.max_lateness_s, mean_lateness_ms=1e3 * t.mean_lateness_s,
-                   overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread)
+                   overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority)
 
 
 @router.get("/status", response_model=StatusOut, summary="Angles (deg), mode, tracking, talker, faults")

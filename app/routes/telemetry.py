@@ -85,7 +85,9 @@ async def telemetry(ws: WebSocket) -> None:
             if reader in done or ended in done:
                 get.cancel()
                 break
-            await ws.send_text(json.dumps(get.result(), separators=(",", ":")))
+            frame = get.result()
+            text = getattr(frame, "text", None)  # encoded once by the hub for every client
+            await ws.send_text(text if isinstance(text, str) else json.dumps(frame, separators=(",", ":")))
         if ended.done():
             await ws.close(code=4401, reason=sub.end_reason)
     except (WebSocketDisconnect, RuntimeError):
