@@ -207,6 +207,7 @@ def main() -> int:
     parser.add_argument("--tree", default=str(ROOT), help="checkout to run the service from")
     parser.add_argument("--chunk-ms", type=float, default=10.0, help="the control tick (ms)")
     parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the loop thread")
+    parser.add_argument("--nice", type=int, default=0, help="run the service this much nicer (<0: less nice)")
     parser.add_argument("--seconds", type=float, default=20.0, help="longest load phase (s)")
     parser.add_argument("--idle-seconds", type=float, default=5.0)
     parser.add_argument("--viewers", type=int, default=50)
@@ -241,6 +242,7 @@ def main() -> int:
             env=env,
             cwd=tmp,
             stdout=subprocess.DEVNULL,
+            preexec_fn=(lambda: os.nice(args.nice)) if args.nice else None,
         )
         api = f"http://127.0.0.1:{port}/api/v1"
         try:
@@ -269,7 +271,8 @@ def main() -> int:
     period = args.chunk_ms / 1e3
     load_avg = os.getloadavg()
     print(
-        f"tree {args.tree}, tick {args.chunk_ms:g} ms, priority {args.priority}, {args.viewers} viewers, "
+        f"tree {args.tree}, tick {args.chunk_ms:g} ms, priority {args.priority}, nice {args.nice}, "
+        f"{args.viewers} viewers, "
         f"{args.rest} REST calls "
         f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
         f"{'done' if res['job_done'] else 'still running at the end'}; load average {load_avg[0]:.1f}"
