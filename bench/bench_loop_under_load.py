@@ -101,7 +101,9 @@ async def workbench(api: str, h: dict[str, str], csv: str, n: int, log: list[str
             t1 = time.perf_counter()
             r = await c.post(f"{api}/workbench/measurements/{mid}/diagnose", headers=h, json={})
             r.raise_for_status()
-            log.append(f"upload {t1 - t0:.1f} s, diagnose {time.perf_counter() - t1:.1f} s")
+            log.append(
+                f"upload {t1 - t0:.1f} s, diagnose {time.perf_counter() - t1:.1f} s (started at {t0:.3f})"
+            )
 
 
 async def rest_burst(api: str, h: dict[str, str], n: int, concurrency: int) -> float:
@@ -284,6 +286,14 @@ def main() -> int:
         tf = tick_figures(ticks, t0, t1, period)
         print(f"{phase:5s} control ticks: {json.dumps({k: round(v, 2) for k, v in tf.items()})}")
     t0, t1 = res["load"]
+    sel = ticks[(ticks >= t0) & (ticks <= t1)]
+    big = [
+        (float(a - t0), 1e3 * float(b - a)) for a, b in zip(sel[:-1], sel[1:], strict=True) if b - a > 0.05
+    ]
+    print(
+        f"load started at {t0:.3f}; gaps over 50 ms at (s after, ms): "
+        + ", ".join(f"+{a:.2f} {g:.0f}" for a, g in big[:20])
+    )
     ff = frame_figures(res["viewers"], t0, t1)
     print(f"load  telemetry frames: {json.dumps({k: round(v, 2) for k, v in ff.items()})}")
     if res["status_loop"] is not None:
