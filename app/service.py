@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import logging
 import math
 from typing import Annotated, Any
@@ -61,6 +62,11 @@ class Service:
         s = self.settings
         self.engine = rig.build_engine(s)
         self.work.warm(heavy.warm_up)
+        # Everything loaded so far (numba, scipy, python-control: some 200 000 objects) out of
+        # the collector's sight: a full collection over them held the GIL, and so the control
+        # loop's thread, for up to a second.
+        gc.collect()
+        gc.freeze()
         self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
         self.hub.start(self.engine)
         if s.audio_enabled:
