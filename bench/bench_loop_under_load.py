@@ -106,7 +106,8 @@ async def workbench(api: str, h: dict[str, str], csv: str, n: int, log: list[str
             )
 
 
-async def rest_burst(api: str, h: dict[str, str], n: int, concurrency: int) -> float:
+async def rest_burst(api: str, h: dict[str, str], n: int, concurrency: int, refused: list[int]) -> float:
+    """``n`` calls, ``concurrency`` at a time; 429s (a tree that caps heavy requests) are counted."""
     paths = ["/status", "/presets", "/axes/pan/gains", "/jobs", "/workbench/measurements"]
     sem = asyncio.Semaphore(concurrency)
     t0 = time.perf_counter()
@@ -118,7 +119,10 @@ async def rest_burst(api: str, h: dict[str, str], n: int, concurrency: int) -> f
                     r = await c.put(f"{api}/tracking", headers=h, json={"enabled": i % 20 == 9})
                 else:
                     r = await c.get(api + paths[i % len(paths)], headers=h)
-                r.raise_for_status()
+                if r.status_code == 429:
+                    refused.append(i)
+                else:
+                    r.raise_for_status()
 
         await asyncio.gather(*(one(i) for i in range(n)))
     return time.perf_counter() - t0
@@ -180,7 +184,9 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
     log: list[str] = []
     t_load0 = time.perf_counter()
     job = asyncio.create_task(workbench(api, h, csv, args.diagnoses, log))
-    rest_s = await rest_burst(api, h, args.rest, 20)
+    refused: list[int] = []
+    rest_s = await rest_burst(api, h, args.rest, 20, refused)
+    out["refused"] = len(refused)
     try:
         await asyncio.wait_for(
             asyncio.shield(job), timeout=max(0.0, args.seconds - (time.perf_counter() - t_load0))
@@ -275,7 +281,7 @@ def main() -> int:
     print(
         f"tree {args.tree}, tick {args.chunk_ms:g} ms, priority {args.priority}, nice {args.nice}, "
         f"{args.viewers} viewers, "
-        f"{args.rest} REST calls "
+        f"{args.rest} REST calls ({res['refused']} refused with 429) "
         f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
         f"{'done' if res['job_done'] else 'still running at the end'}; load average {load_avg[0]:.1f}"
     )
