@@ -60,6 +60,8 @@ class JobRunner:
         try:
             slot, future = self.pool.submit_job(fn, job_id, *args)
             self._slots[job_id] = slot
+            if job_id in self._cancelled:  # cancelled before it was handed to the pool
+                self.pool.cancel(slot)
             result = await asyncio.wrap_future(future)
         except JobCancelled:
             self.db.update_job(job_id, state="cancelled", message="cancelled")
@@ -85,10 +87,11 @@ class JobRunner:
         job = self.db.get_job(job_id)
         if job is None:
             raise NotFound(f"no job {job_id}")
-        slot = self._slots.get(job_id)
-        if slot is not None:
+        if job_id in self._tasks:
             self._cancelled.add(job_id)
-            self.pool.cancel(slot)
+            slot = self._slots.get(job_id)
+            if slot is not None:
+                self.pool.cancel(slot)
             self.db.update_job(job_id, message="cancelling")
         return self.db.get_job(job_id) or job
 
