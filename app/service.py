@@ -40,7 +40,7 @@ class Service:
         self.db.fail_unfinished_jobs()
         self.lock = ControlLock(ttl_s=settings.control_lock_ttl_s)
         self.hub = TelemetryHub(rate_hz=settings.telemetry_rate_hz)
-        self.pool = WorkerPool(settings.job_workers, on_progress=self._job_progress)
+        self.pool = WorkerPool(settings.job_workers, on_progress=self._job_progress, effects=settings.effects)
         self.jobs = JobRunner(self.db, self.pool, max_running=settings.max_running_jobs)
         self.work = WorkPool(
             settings.heavy_workers, settings.heavy_queue, settings.heavy_per_key, settings.effects

@@ -34,9 +34,13 @@ _progress_queue: Any = None
 _cancel_flags: Any = None
 
 
-def _init_worker(progress_queue: Any, cancel_flags: Any) -> None:
+def _init_worker(progress_queue: Any, cancel_flags: Any, effects: str) -> None:
     global _progress_queue, _cancel_flags
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # see tracker.cli
+    if effects:  # the site's effect plug-ins, as in the service (a rig config may name them)
+        from app.work import load_site_effects
+
+        load_site_effects(effects)
     try:  # background work: on a busy machine the service's own threads come first
         os.nice(WORKER_NICE)
     except (AttributeError, OSError):
@@ -82,12 +86,12 @@ def _job_entry(
 class WorkerPool:
     """The service's worker processes (see the module docstring)."""
 
-    def __init__(self, max_workers: int, on_progress: ProgressFn | None = None) -> None:
+    def __init__(self, max_workers: int, on_progress: ProgressFn | None = None, effects: str = "") -> None:
         ctx = multiprocessing.get_context("spawn")
         self._progress: Any = ctx.Queue()
         self._cancel: SynchronizedArray[int] = ctx.Array("b", JOB_SLOTS)
         self._executor = ProcessPoolExecutor(max_workers, mp_context=ctx, initializer=_init_worker,
-                                             initargs=(self._progress, self._cancel))
+                                             initargs=(self._progress, self._cancel, effects))
         self._free = list(range(JOB_SLOTS))
         self._lock = threading.Lock()
         self._on_progress = on_progress
