@@ -72,17 +72,17 @@ class ModelCheck:
         return self.candidate_rms_rad <= max(self.limit_rad, self.current_rms_rad)
 
     def describe(self) -> str:
-        """One line with the figures, in degrees."""
+        """The verdict with its figures, in degrees (e.g. after "pan model refused: ")."""
         if not self.judged and self.needs_judgement:
             return (
-                f"{self.axis} model not checked, and it has a belt, which the soft-limit guard trusts "
-                f"(tracker.control.belt_guard): {self.note}"
+                "it has a belt, which the soft-limit guard trusts (tracker.control.belt_guard), and "
+                f"it could not be checked: {self.note}"
             )
         if not self.judged:
-            return f"{self.axis} model not checked: {self.note}"
-        verdict = "predicts" if self.accepted else "does not predict"
+            return f"not checked: {self.note}"
+        verdict = "it predicts" if self.accepted else "it does not predict"
         return (
-            f"{self.axis} model {verdict} the last {self.window_s:.1f} s of {self.axis}: k-step "
+            f"{verdict} the last {self.window_s:.1f} s of {self.axis}: k-step "
             f"({1000 * self.horizon_s:.0f} ms) RMS error {math.degrees(self.candidate_rms_rad):.4f}°, "
             f"the current model {math.degrees(self.current_rms_rad):.4f}°; limit "
             f"{math.degrees(self.limit_rad):.4f}° (the current model with its inertia off by 2×)"
