@@ -63,7 +63,7 @@ def step_and_record(rig: Rig, to_deg: float, settle_deg: float = 0.2) -> list[fl
     engine = service(rig).engine
     engine.start_recording()
     assert point(rig, to_deg).status_code == 200
-    assert poll(lambda: abs(pan_deg(rig) - to_deg) < settle_deg, 8.0), pan_deg(rig)
+    assert poll(lambda: abs(pan_deg(rig) - to_deg) < settle_deg, 20.0), pan_deg(rig)
     time.sleep(0.3)  # a little past settling, where an overshoot would show
     return [math.degrees(v) for v in engine.stop_recording()["pan"].theta_rad]
 
@@ -88,7 +88,7 @@ def test_regression_issue_11_a_lighter_axis_model_then_0_then_minus_89_stays_ins
     assert body["error"] == "Refused" and "has a belt" in body["detail"]
     assert body["model_check"]["judged"] is False and body["model_check"]["needs_judgement"] is True
     assert point(fresh, 0.0).status_code == 200
-    assert poll(lambda: abs(pan_deg(fresh)) < 0.2, 5.0)
+    assert poll(lambda: abs(pan_deg(fresh)) < 0.2, 15.0)
     trace = step_and_record(fresh, -89.0)
     assert min(trace) >= -90.0, f"pan reached {min(trace):.2f}°"
     assert fresh.client.get(f"{API}/status", headers=fresh.h("viewer")).json()["faults"] == []
@@ -122,7 +122,7 @@ def test_a_standing_fault_gives_503_for_pointing_jog_presets_and_tracking(fresh:
     door = {"pan_deg": 20.0, "tilt_deg": 0.0}
     assert fresh.client.put(f"{API}/presets/door", headers=op, json=door).status_code == 200
     service(fresh).engine.driver.latch_fault("pan: over-travel at -95.3° (injected)")
-    assert poll(lambda: fresh.client.get(f"{API}/status", headers=op).json()["mode"] == "fault", 3.0)
+    assert poll(lambda: fresh.client.get(f"{API}/status", headers=op).json()["mode"] == "fault", 10.0)
     refused = [
         point(fresh, 10.0),
         fresh.client.put(f"{API}/jog/pan", headers=op, json={"rate_deg_s": 5.0}),
@@ -139,15 +139,15 @@ def test_a_standing_fault_gives_503_for_pointing_jog_presets_and_tracking(fresh:
     assert fresh.client.put(f"{API}/tracking", headers=op, json={"enabled": False}).status_code == 200
     assert fresh.client.post(f"{API}/faults/clear", headers=fresh.h("engineer")).status_code == 200
     assert point(fresh, 10.0).status_code == 200
-    assert poll(lambda: abs(pan_deg(fresh) - 10.0) < 0.2, 5.0)
+    assert poll(lambda: abs(pan_deg(fresh) - 10.0) < 0.2, 15.0)
 
 
 def test_after_an_over_travel_an_engineer_clears_it_and_pan_comes_back_inside(fresh: Rig) -> None:
     driver = service(fresh).engine.driver
     driver.set_angle("pan", math.radians(-97.0))
-    assert poll(lambda: driver.faults(), 3.0)
+    assert poll(lambda: driver.faults(), 10.0)
     assert point(fresh, 0.0).status_code == 503
     r = fresh.client.post(f"{API}/faults/clear", headers=fresh.h("engineer"))
     assert r.status_code == 200 and r.json()["faults"] == []
-    assert poll(lambda: -90.0 < pan_deg(fresh) < -89.0, 5.0), pan_deg(fresh)
+    assert poll(lambda: -90.0 < pan_deg(fresh) < -89.0, 15.0), pan_deg(fresh)
     assert point(fresh, 0.0).status_code == 200
