@@ -6,6 +6,7 @@ lives in app/.
 
 from __future__ import annotations
 
+import inspect
 import logging
 import math
 from typing import Any
@@ -40,18 +41,35 @@ def build_driver(settings: Settings, hidden: Any = None, axis: str = "pan") -> A
 def build_camera(settings: Settings) -> Any:
     """The VISCA camera of ``settings.driver``, with the engine's soft limits enforced in the
     driver too (guard margin included), the profile, command rate and steering of the settings."""
-    from tracker.control.limits import SoftLimits
     from tracker.drivers.camera_profiles import get_profile
     from tracker.drivers.spec import parse_driver_url
     from tracker.drivers.visca import ViscaCamera
+
+    limits = guard_lines_rad(settings)
+    return ViscaCamera(parse_driver_url(settings.driver), get_profile(settings.camera_profile), limits,
+                       rate_hz=settings.camera_rate_hz, steering=settings.camera_steering)
+
+
+def guard_lines_rad(settings: Settings) -> dict[str, tuple[float, float]]:
+    """The soft-limit guard's lines per axis (rad): the limits less the guard margin."""
+    from tracker.control.limits import SoftLimits
 
     margin = math.radians(settings.guard_margin_deg)
     limits = {}
     for axis in AXES:
         lim = SoftLimits.for_axis(axis, margin)
         limits[axis] = (lim.lower_rad + lim.guard_margin_rad, lim.upper_rad - lim.guard_margin_rad)
-    return ViscaCamera(parse_driver_url(settings.driver), get_profile(settings.camera_profile), limits,
-                       rate_hz=settings.camera_rate_hz, steering=settings.camera_steering)
+    return limits
+
+
+def build_serial_rig(settings: Settings) -> Any:
+    """The DC rig behind the motor controller board of ``settings.driver``: the gear ratios of
+    the settings, the soft limits enforced in the driver too (guard margin included)."""
+    from tracker.drivers.serial_motor import SerialMotorDriver
+    from tracker.drivers.spec import parse_driver_url
+
+    gear = {"pan": settings.motor_gear_ratio_pan, "tilt": settings.motor_gear_ratio_tilt}
+    return SerialMotorDriver(parse_driver_url(settings.driver), gear, guard_lines_rad(settings))
 
 
 def driver_state(engine: Any) -> dict[str, Any]:
@@ -65,10 +83,12 @@ def driver_state(engine: Any) -> dict[str, Any]:
 
 
 async def close_driver(engine: Any) -> None:
-    """Stop and disconnect a PTZ camera (nothing to do for the simulated rig)."""
+    """Stop and disconnect a PTZ camera or a serial rig (nothing to do for the simulated rig)."""
     close = getattr(getattr(engine, "driver", None), "close", None)
     if close is not None:
-        await close()
+        done = close()
+        if inspect.isawaitable(done):
+            await done
 
 
 def check_settings(settings: Settings) -> None:
@@ -92,16 +112,22 @@ def build_engine(settings: Settings) -> Any:
     from tracker.engine import Engine, EngineConfig
 
     config = EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg,
-                          guard_margin_rad=math.radians(settings.guard_margin_deg))
+                          guard_margin_rad=math.radians(settings.guard_margin_deg),
+                          chunk_s=settings.control_chunk_ms / 1e3,
+                          loop_priority=settings.control_loop_priority)
     return Engine(build_live_driver(settings), config)
 
 
 def build_live_driver(settings: Settings) -> Any:
-    """What the engine steers: the PTZ camera ``settings.driver`` names, or the simulated rig."""
+    """What the engine steers: the PTZ camera or serial rig ``settings.driver`` names, or the
+    simulated rig."""
     from tracker.drivers.spec import parse_driver_url
 
-    if parse_driver_url(settings.driver).kind == "visca":
+    kind = parse_driver_url(settings.driver).kind
+    if kind == "visca":
         return build_camera(settings)
+    if kind == "serial":
+        return build_serial_rig(settings)
     return build_driver(settings)
 
 
@@ -135,15 +161,6 @@ def random_practice_model(axis: str, seed: int) -> Any:
     names = sorted(HIDDEN_RANGES)
     effect = names[int(np.random.default_rng(seed).integers(len(names)))]
     return random_hidden_model(axis, [effect], seed)
-
-
-def run_friction_id(driver: Any, axis: str, progress: Any, cancel: Any) -> dict[str, Any]:
-    """The friction-ID experiment on ``driver`` (JSON-ready result with the torque–velocity data)."""
-    from tracker.workbench import friction_id
-
-    result = friction_id.run_friction_id(driver, axis=axis, progress=progress, cancel=cancel)
-    out: dict[str, Any] = result.to_dict()
-    return out
 
 
 def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:

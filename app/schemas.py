@@ -25,6 +25,20 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True)
 
 
+class LoopOut(BaseModel):
+    """How well the control loop keeps its clock since the engine started."""
+
+    period_ms: float = Field(description="the tick period: one chunk of control samples")
+    ticks: int
+    last_lateness_ms: float = Field(description="how late the last tick started")
+    max_lateness_ms: float
+    mean_lateness_ms: float
+    overruns: int = Field(description="ticks that started a whole period (or more) late")
+    restarts: int = Field(description="times the loop fell over 0.1 s behind and dropped ticks")
+    in_thread: bool = Field(description="the loop runs in its own thread (real time)")
+    priority: int = Field(0, description="the loop thread's SCHED_FIFO priority (0: normal scheduling)")
+
+
 class StatusOut(BaseModel):
     t_s: float
     pan_deg: float
@@ -44,6 +58,7 @@ class StatusOut(BaseModel):
         default_factory=lambda: {"kind": "sim"},
         description="what the engine steers: kind (sim | visca), url, and for a camera its profile, link "
                     "state (connecting | connected | reconnecting), command rate, round trips, retransmits")
+    loop: LoopOut | None = Field(None, description="the control loop's timing")
 
 
 class TrackingIn(Strict):

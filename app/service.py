@@ -1,4 +1,5 @@
-"""The running service: settings, database, engine task, telemetry hub, control lock, jobs, 3D view.
+"""The running service: settings, database, engine, telemetry hub, control lock, worker processes
+and jobs, 3D view.
 
 One :class:`Service` lives in ``app.state.svc`` for the lifetime of the FastAPI app; the lifespan
 in :mod:`app.main` starts and stops it. Routes reach it through :func:`get_service`.
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import logging
 import math
 from typing import Annotated, Any
@@ -23,6 +25,7 @@ from app.jobs import JobRunner
 from app.settings import Settings
 from app.telemetry import TelemetryHub
 from app.work import WorkPool
+from app.workers import WorkerPool
 
 log = logging.getLogger("app")
 
@@ -37,7 +40,8 @@ class Service:
         self.db.fail_unfinished_jobs()
         self.lock = ControlLock(ttl_s=settings.control_lock_ttl_s)
         self.hub = TelemetryHub(rate_hz=settings.telemetry_rate_hz)
-        self.jobs = JobRunner(self.db, max_running=settings.max_running_jobs)
+        self.pool = WorkerPool(settings.job_workers, on_progress=self._job_progress, effects=settings.effects)
+        self.jobs = JobRunner(self.db, self.pool, max_running=settings.max_running_jobs)
         self.work = WorkPool(
             settings.heavy_workers, settings.heavy_queue, settings.heavy_per_key, settings.effects
         )
@@ -50,11 +54,19 @@ class Service:
         self.audio_note: str | None = None
         self._engine_task: asyncio.Task[None] | None = None
 
+    def _job_progress(self, job_id: int, fraction: float, message: str) -> None:
+        self.jobs.progress(job_id, fraction, message)
+
     async def start(self) -> None:
         """Build and start the engine, the telemetry hub, the audio target source and the 3D view."""
         s = self.settings
         self.engine = rig.build_engine(s)
         self.work.warm(heavy.warm_up)
+        # Everything loaded so far (numba, scipy, python-control: some 200 000 objects) out of
+        # the collector's sight: a full collection over them held the GIL, and so the control
+        # loop's thread, for up to a second.
+        gc.collect()
+        gc.freeze()
         self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
         self.hub.start(self.engine)
         if s.audio_enabled:
@@ -87,6 +99,7 @@ class Service:
     async def stop(self) -> None:
         self.work.close()
         await self.jobs.shutdown()
+        await asyncio.to_thread(self.pool.shutdown)
         if self.viewer is not None:
             await self.viewer.stop()
         if self.audio is not None:

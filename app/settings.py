@@ -34,8 +34,16 @@ class Settings(BaseSettings):
     driver: str = Field(
         "sim",
         description="what the engine steers: 'sim' (the simulated rig), 'visca+udp://HOST[:52381]' "
-        "(Sony VISCA over IP) or 'visca+tcp://HOST:PORT' (raw VISCA, e.g. PTZOptics on 5678)",
+        "(Sony VISCA over IP), 'visca+tcp://HOST:PORT' (raw VISCA, e.g. PTZOptics on 5678) or "
+        "'serial:///dev/ttyUSB0[?baud=115200&rate=HZ&watchdog_ms=100]' (a DC rig's motor controller "
+        "board: docs/serial-protocol.md)",
     )
+    motor_gear_ratio_pan: float = Field(
+        17.01, gt=0.0, le=10_000.0,
+        description="serial rig: motor revolutions per pan revolution (the seed's 6.3:1 gear x 2.7:1 "
+                    "pulley); the board's counts per motor revolution come from its hello")
+    motor_gear_ratio_tilt: float = Field(
+        17.01, gt=0.0, le=10_000.0, description="serial rig: motor revolutions per tilt revolution")
     camera_profile: str = Field(
         "generic", description="PTZ camera profile (tracker/drivers/camera_profiles.toml): "
         "generic, sony_srg, sony_evi_d70, ptzoptics")
@@ -65,6 +73,14 @@ class Settings(BaseSettings):
     viewer_port: int = Field(8081, ge=0, le=65535)
     viewer_rate_hz: float = Field(30.0, gt=0, le=120)
 
+    control_chunk_ms: float = Field(
+        10.0, ge=1.0, le=50.0,
+        description="the control loop's tick: each tick runs this many ms of 1 kHz samples (10: 100 "
+                    "ticks a second; 1: one sample a tick) and publishes one telemetry snapshot")
+    control_loop_priority: int = Field(
+        0, ge=0, le=99,
+        description="SCHED_FIFO priority of the control loop's thread on Linux (0: normal scheduling); "
+                    "needs CAP_SYS_NICE (systemd: CPUSchedulingPolicy/LimitRTPRIO), ignored if refused")
     telemetry_rate_hz: float = Field(100.0, ge=50.0, le=1000.0, description="WebSocket frame rate")
     jog_timeout_s: float = Field(0.5, gt=0.0, le=5.0, description="a jog stops by itself after this")
     control_lock_ttl_s: float = Field(30.0, gt=0.0, description="manual control lapses when idle this long")
@@ -93,6 +109,9 @@ class Settings(BaseSettings):
     bad_key_window_s: float = Field(60.0, gt=0.0)
     bad_key_max_block_s: float = Field(
         600.0, ge=1.0, description="each block doubles from 5 s up to this while the bad keys go on")
+    job_workers: int = Field(
+        1, ge=1, le=8, description="worker processes for jobs (friction-ID), with progress and cancel; "
+                                   "they never share the control loop's interpreter")
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @field_validator("audio_input")

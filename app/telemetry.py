@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import logging
 import math
 from collections.abc import AsyncIterator
@@ -43,6 +44,16 @@ def frame_of(s: Snapshot) -> dict[str, Any]:
         "estimate_azimuth_deg": _deg(s.estimate_azimuth_rad),
         "estimate_elevation_deg": _deg(s.estimate_elevation_rad),
     }
+
+
+class Frame(dict[str, Any]):
+    """A frame (a dict, see :func:`frame_of`) with its JSON text, encoded once for all clients."""
+
+    __slots__ = ("text",)
+
+    def __init__(self, fields: dict[str, Any]) -> None:
+        super().__init__(fields)
+        self.text = json.dumps(fields, separators=(",", ":"))
 
 
 class Subscription:
@@ -110,7 +121,7 @@ class TelemetryHub:
         if snap.t_s - self._last_t_s < self.period_s - 1e-9:
             return
         self._last_t_s = snap.t_s
-        frame = frame_of(snap)
+        frame = Frame(frame_of(snap))
         self.latest_frame = frame
         self.frames_sent += 1
         for sub in list(self._subs):

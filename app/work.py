@@ -1,7 +1,7 @@
 """Heavy work off the engine's event loop: a small pool of worker processes with a bounded queue.
 
-The engine runs on the service's event loop; a compare or a fit in a thread would share the
-interpreter lock with it (the numba kernels hold it for seconds), so heavy work runs in
+The engine's loop runs in its own thread of the service; a compare or a fit in a thread would
+share the interpreter lock with it (the numba kernels hold it for seconds), so heavy work runs in
 ``workers`` separate processes (spawned: the service has threads that a fork would copy
 half-way). At most ``workers + queue`` requests are admitted at once and at most ``per_key`` of
 them from one key; the next one gets 429 with a Retry-After from the recent mean duration.

@@ -2,14 +2,24 @@
 
 Both axes run at 1 kHz of simulated (or driver) time in chunks of ``EngineConfig.chunk_s``
 (10 ms): on the twin the whole chunk runs compiled (controller + plant); on another driver
-the compiled controller runs sample by sample through the driver. After each chunk the engine
-publishes one :class:`TelemetrySnapshot` (100 Hz). ``run(realtime=True)`` paces chunks to the
-wall clock (serve); ``realtime=False`` runs as fast as possible (batch, tests).
+the compiled controller runs sample by sample through the driver (a serial rig waits for each
+sample's due time in its ``tick``). After each chunk the engine publishes one
+:class:`TelemetrySnapshot` (100 Hz). ``run(realtime=True)`` runs the chunks in the engine's own
+thread, paced to the wall clock by deadlines (:class:`tracker.realtime.PacedLoop`), so nothing on
+the event loop (requests, uploads, WebSocket viewers) can delay a tick; :meth:`Engine.timing`
+says how late the ticks were. ``realtime=False`` runs as fast as possible on the event loop
+(batch, tests).
+
+Threads: the control surface (``point``, ``jog``, ``set_gains``, ``status`` ...) may be called
+from any thread; a lock keeps each call and the engine's bookkeeping around a chunk apart (not
+the chunk's run through the driver, and not the controller design, which happens first).
+Subscriptions are thread-safe (:class:`tracker.telemetry.TelemetrySubscription`).
 
 A PTZ camera (:class:`tracker.drivers.camera.CameraDriver`) closes its own loop: the engine
 then sends it each chunk's last target instead of volts and reads back where it points (the
-controllers are not used; the telemetry's command is 0 V). ``run`` starts the camera's link;
-``enable_on_start`` waits until the camera is ready and holds it where it is.
+controllers are not used; the telemetry's command is 0 V). ``run`` starts a driver that has a
+link (``start()``: a camera, a serial rig); ``enable_on_start`` waits until it is ``ready`` and
+holds where it is.
 
 Modes: "manual" (``point``/``jog`` hold until ``release`` or ``set_tracking(True)``),
 "tracking" (targets from the source), "hold" (no target: keep the last one), "disabled"
@@ -27,7 +37,7 @@ from __future__ import annotations
 
 import asyncio
 import math
-import time
+import threading
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -52,6 +62,7 @@ from tracker.drivers.motor import AXES, ClosedLoopDriver, MotorDriver
 from tracker.errors import ConfigError, DriverFault, ModelRefused
 from tracker.model_check import RECENT_S, ModelCheck, check_model
 from tracker.plant.model import AxisModel
+from tracker.realtime import LoopTiming, PacedLoop
 from tracker.recording import RecentLog, Recorder
 from tracker.targets import TargetSource, as_target
 from tracker.telemetry import EngineStatus, TelemetrySnapshot, TelemetrySubscription
@@ -76,6 +87,8 @@ class EngineConfig:
     # The rated braking of each axis the soft-limit guard counts on, whatever the model says
     # (default: the seed hardware's, BrakingEnvelope.for_axis; a heavier payload lowers it).
     envelopes: dict[str, BrakingEnvelope] | None = None
+    # SCHED_FIFO priority of the real-time loop's thread (0: the normal class; tracker.realtime).
+    loop_priority: int = 0
 
     def __post_init__(self) -> None:
         for a in AXES:  # a bad margin is refused here, naming itself, not at the first chunk
@@ -102,26 +115,20 @@ class _Axis:
         self.shaping = shaping
         self.dt = dt
         self.gains = gains
-        self.cp = self._pack(model, gains)
+        self.cp = self.pack(model, gains)
         self.cs = new_state()
         self.target_rad = 0.0
         self.u_v = 0.0
         self.y_rad = 0.0
 
-    def _pack(self, model: AxisModel, gains: ControllerGains) -> NDArray[np.float64]:
+    def pack(self, model: AxisModel, gains: ControllerGains) -> NDArray[np.float64]:
+        """The packed controller for ``model`` and ``gains`` (the guard counting on the axis's
+        rated braking, ``self.envelope``; ConfigError when packing refuses them, e.g. a belt too
+        soft for the limits); nothing changes yet."""
         return pack_controller(model, gains, self.dt, self.limits, self.shaping, envelope=self.envelope)
 
-    def set_gains(self, gains: ControllerGains) -> None:
-        self.gains = gains
-        self.cp = self._pack(self.model, gains)
-
-    def pack_model(self, model: AxisModel, gains: ControllerGains) -> NDArray[np.float64]:
-        """The packed controller of ``model`` and ``gains`` (e.g. with a fitted belt: the belt
-        guard); ConfigError if packing refuses them (e.g. a belt too soft for the limits)."""
-        return self._pack(model, gains)
-
-    def use_model(self, model: AxisModel, gains: ControllerGains, cp: NDArray[np.float64]) -> None:
-        """Use ``model`` and ``gains``, packed by :meth:`pack_model`."""
+    def use(self, model: AxisModel, gains: ControllerGains, cp: NDArray[np.float64]) -> None:
+        """Switch to a controller made by :meth:`pack` (the engine's lock held)."""
         self.model, self.gains, self.cp = model, gains, cp
 
 
@@ -171,6 +178,8 @@ class Engine:
         self._initialised = False
         self._talker_fresh = False  # the source gave a target in the latest chunk
         self._ran = False  # enable_on_start applies to the first run only
+        self._lock = threading.RLock()
+        self._paced: PacedLoop | None = None
 
     # -- control surface --------------------------------------------------------------------
     @property
@@ -202,17 +211,19 @@ class Engine:
         """Follow the target source (True; ends a manual override) or hold (False).
 
         Raises DriverFault when turning tracking on while a drive fault is latched."""
-        if enabled:
-            self.require_no_fault()
-        self._tracking = bool(enabled)
-        if enabled:
-            self._manual = False
-            self._jog.clear()
+        with self._lock:
+            if enabled:
+                self.require_no_fault()
+            self._tracking = bool(enabled)
+            if enabled:
+                self._manual = False
+                self._jog.clear()
 
     def set_target_source(self, source: TargetSource | None) -> None:
         """Plug in (or remove) the source of targets for tracking mode."""
-        self._source = source
-        self._source_name = None if source is None else str(getattr(source, "name", type(source).__name__))
+        name = None if source is None else str(getattr(source, "name", type(source).__name__))
+        with self._lock:
+            self._source, self._source_name = source, name
 
     def point(self, pan_rad: float, tilt_rad: float) -> None:
         """Manual override: point at (pan, tilt) until ``release`` or ``set_tracking(True)``.
@@ -221,15 +232,17 @@ class Engine:
         self.require_no_fault()
         for axis, value in (("pan", pan_rad), ("tilt", tilt_rad)):
             self._axes[axis].limits.check_target(axis, float(value))
-        self._manual = True
-        self._jog.clear()
-        self._last_target["pan"] = float(pan_rad)
-        self._last_target["tilt"] = float(tilt_rad)
+        with self._lock:
+            self._manual = True
+            self._jog.clear()
+            self._last_target["pan"] = float(pan_rad)
+            self._last_target["tilt"] = float(tilt_rad)
 
     def release(self) -> None:
         """End a manual override (back to tracking if enabled, else hold)."""
-        self._manual = False
-        self._jog.clear()
+        with self._lock:
+            self._manual = False
+            self._jog.clear()
 
     def jog(self, axis: str, rate_rad_s: float, timeout_s: float = 0.5) -> None:
         """Move ``axis`` at ``rate_rad_s`` until a rate of 0, or ``timeout_s`` without renewal.
@@ -248,14 +261,15 @@ class Engine:
             raise ConfigError(
                 f"jog {axis}: rate {rate_rad_s:g} rad/s exceeds the axis rate limit {limit:g} rad/s"
             )
-        if not self._manual:
-            self._manual = True
-            for a in AXES:  # start from where the axes are
-                self._last_target[a] = self._axes[a].y_rad if self._initialised else self._last_target[a]
-        if rate_rad_s == 0.0:
-            self._jog.pop(axis, None)
-        else:
-            self._jog[axis] = (float(rate_rad_s), self._t + float(timeout_s))
+        with self._lock:
+            if not self._manual:
+                self._manual = True
+                for a in AXES:  # start from where the axes are
+                    self._last_target[a] = self._axes[a].y_rad if self._initialised else self._last_target[a]
+            if rate_rad_s == 0.0:
+                self._jog.pop(axis, None)
+            else:
+                self._jog[axis] = (float(rate_rad_s), self._t + float(timeout_s))
 
     def gains(self, axis: str) -> ControllerGains:
         """The gains in use on ``axis``."""
@@ -270,7 +284,9 @@ class Engine:
         report = check_gains(ax.model, gains, self.config.min_phase_margin_deg)
         if not report.ok:
             raise ConfigError(f"{axis} gains refused: {report.describe()}")
-        ax.set_gains(gains)
+        cp = ax.pack(ax.model, gains)
+        with self._lock:
+            ax.use(ax.model, gains, cp)
         return report
 
     def limits(self, axis: str) -> SoftLimits:
@@ -284,7 +300,8 @@ class Engine:
     def recent_motion(self, axis: str) -> Measurement | None:
         """The last ``RECENT_S`` seconds of ``axis`` (t, u, θ; a copy), None before there are enough."""
         self._axis(axis)
-        return self._recent.measurement(axis)
+        with self._lock:
+            return self._recent.measurement(axis)
 
     def check_model(self, axis: str, model: AxisModel) -> ModelCheck:
         """Does ``model`` predict ``axis``'s recent motion (:func:`tracker.model_check.check_model`)?"""
@@ -307,40 +324,52 @@ class Engine:
         design = design_controller(model, self.config.controller, axis=axis, **options)
         if not design.report.ok or design.report.phase_margin_deg < self.config.min_phase_margin_deg:
             raise ConfigError(f"{axis} redesign refused: {design.report.describe()}")
-        cp = ax.pack_model(model, design.gains)
-        check = self.check_model(axis, model) if check is None else check
+        cp = ax.pack(model, design.gains)
+        check = self.check_model(axis, model) if check is None else check  # off the lock (slow)
         if check.axis != axis:
             raise ConfigError(f"set_model {axis}: the check given is for {check.axis}")
         if not check.accepted:
             raise ModelRefused(f"{axis} model refused: {check.describe()}", check.to_dict())
-        ax.use_model(model, design.gains, cp)
+        with self._lock:
+            ax.use(model, design.gains, cp)
         return design
 
     def start_recording(self) -> None:
         """Start recording t, u, theta of each axis."""
-        self._recorder = Recorder(AXES)
+        with self._lock:
+            self._recorder = Recorder(AXES)
 
     def stop_recording(self) -> dict[str, Measurement]:
         """Stop recording; per-axis measurements in the log format."""
-        if self._recorder is None:
-            raise ConfigError("stop_recording: recording was not started")
-        rec, self._recorder = self._recorder, None
+        with self._lock:
+            if self._recorder is None:
+                raise ConfigError("stop_recording: recording was not started")
+            rec, self._recorder = self._recorder, None
         return rec.measurements()
 
     def status(self) -> EngineStatus:
         """The engine's state now."""
-        p, t = self._axes["pan"], self._axes["tilt"]
-        return EngineStatus(
-            self._t,
-            p.y_rad,
-            t.y_rad,
-            p.target_rad,
-            t.target_rad,
-            self.mode,
-            self._tracking,
-            self._driver.faults(),
-            self._talker,
-        )
+        with self._lock:
+            p, t = self._axes["pan"], self._axes["tilt"]
+            return EngineStatus(
+                self._t,
+                p.y_rad,
+                t.y_rad,
+                p.target_rad,
+                t.target_rad,
+                self.mode,
+                self._tracking,
+                self._driver.faults(),
+                self._talker,
+            )
+
+    def timing(self) -> LoopTiming:
+        """How well the real-time loop keeps its clock (zeros before the first real-time run)."""
+        paced = self._paced
+        if paced is None:
+            period = self._n_chunk * self._dt
+            return LoopTiming(period, 0, 0.0, 0.0, 0.0, 0, 0, False, False)
+        return paced.timing()
 
     @property
     def mode(self) -> str:
@@ -362,56 +391,83 @@ class Engine:
 
     # -- the loop ---------------------------------------------------------------------------
     async def run(self, realtime: bool = True, duration_s: float | None = None) -> None:
-        """Run until ``stop()`` or ``duration_s`` of engine time have passed."""
+        """Run until ``stop()`` or ``duration_s`` of engine time have passed (``realtime``: in
+        the engine's own thread, paced to the wall clock; else on the event loop, at once)."""
         if self._running:
             raise ConfigError("engine is already running")
         self._running = True
         self._stop = False
         first_run, self._ran = not self._ran, True
-        if self._camera is not None:
-            self._camera.start()
-            self._enable_when_ready = first_run and self.config.enable_on_start
-        elif (
-            first_run
-            and self.config.enable_on_start
-            and not self._driver.enabled
-            and not self._driver.faults()
-        ):
-            try:
-                self._driver.enable()
-            except DriverFault:
-                pass
+        start = getattr(self._driver, "start", None)
+        if callable(start):  # a link to bring up (camera, serial rig): needs the event loop here
+            start()
+        self._enable_when_ready = first_run and self.config.enable_on_start
         end = None if duration_s is None else self._t + float(duration_s)
-        wall0, sim0 = time.perf_counter(), self._t
         try:
-            while not self._stop and (end is None or self._t < end - 1e-12):
-                self.step_chunk()
-                if realtime:
-                    lag = (self._t - sim0) - (time.perf_counter() - wall0)
-                    await asyncio.sleep(max(0.0, lag))
-                else:
+            if realtime:
+                await self._run_paced(end)
+            else:
+                while not self._stop and (end is None or self._t < end - 1e-12):
+                    self.step_chunk()
                     await asyncio.sleep(0)
         finally:
             self._running = False
             for sub in list(self._subscribers):
                 sub.put(None)
 
+    async def _run_paced(self, end: float | None) -> None:
+        """The chunks in a :class:`PacedLoop` thread; returns (or raises) when it ends."""
+        loop = asyncio.get_running_loop()
+        done: asyncio.Future[None] = loop.create_future()
+
+        def step() -> bool:
+            if self._stop or (end is not None and self._t >= end - 1e-12):
+                return False
+            self.step_chunk()
+            return True
+
+        def finish(error: BaseException | None) -> None:
+            if not done.done():
+                if error is None:
+                    done.set_result(None)
+                else:
+                    done.set_exception(error)
+
+        def on_exit(error: BaseException | None) -> None:
+            try:
+                loop.call_soon_threadsafe(finish, error)
+            except RuntimeError:  # the event loop is gone: nobody waits
+                pass
+
+        paced = PacedLoop(self._n_chunk * self._dt, step, on_exit=on_exit, name="engine-loop",
+                          priority=self.config.loop_priority)
+        self._paced = paced
+        paced.start()
+        try:
+            await done
+        finally:
+            self._stop = True
+            paced.join(2.0)
+
     def step_chunk(self) -> TelemetrySnapshot:
         """Run one chunk of both axes and publish its snapshot (the loop's body; sync)."""
         n = self._n_chunk
-        if not self._initialised:
-            for a, ax in self._axes.items():
-                ax.y_rad = self._driver.read_encoder(a)
-                if not self._manual:
-                    self._last_target[a] = ax.y_rad
-                ax.target_rad = self._last_target[a]
-            self._initialised = True
-        if self._driver.faults():  # a latched fault ends the manual override: hold where it stops
-            self._manual = False
-            self._jog.clear()
-        targets = self._chunk_targets(n)
-        t_chunk = self._t + np.arange(n, dtype=np.float64) * self._dt
-        records: dict[str, np.ndarray] = {}
+        with self._lock:
+            if not self._initialised:
+                for a, ax in self._axes.items():
+                    ax.y_rad = self._driver.read_encoder(a)
+                    if not self._manual:
+                        self._last_target[a] = ax.y_rad
+                    ax.target_rad = self._last_target[a]
+                self._initialised = True
+            if self._enable_when_ready:
+                self._enable_if_ready()
+            if self._driver.faults():  # a latched fault ends the manual override: hold where it stops
+                self._manual = False
+                self._jog.clear()
+            targets = self._chunk_targets(n)
+            t_chunk = self._t + np.arange(n, dtype=np.float64) * self._dt
+        records: dict[str, np.ndarray] = {}  # the driver runs without the lock (a serial rig waits)
         if self._camera is not None:
             records = self._run_camera(self._camera, targets, n)
         elif self._fast is not None:
@@ -419,20 +475,40 @@ class Engine:
                 records[a] = self._fast.run_closed_loop(a, ax.cp, ax.cs, targets[a])
         else:
             records = self._run_per_sample(targets, n)
-        for a, ax in self._axes.items():
-            rec = records[a]
-            ax.y_rad = float(rec[-1, R_Y])
-            ax.u_v = float(rec[-1, R_U])
-            ax.target_rad = float(targets[a][-1])
-            self._recent.add(a, t_chunk, rec[:, R_U], rec[:, R_Y])
-            if self._recorder is not None:
-                self._recorder.add(a, t_chunk, rec[:, R_U], rec[:, R_Y])
-        self._k += n
-        self._t = self._k * self._dt
-        snap = self._snapshot()
+        with self._lock:
+            for a, ax in self._axes.items():
+                rec = records[a]
+                ax.y_rad = float(rec[-1, R_Y])
+                ax.u_v = float(rec[-1, R_U])
+                ax.target_rad = float(targets[a][-1])
+                self._recent.add(a, t_chunk, rec[:, R_U], rec[:, R_Y])
+                if self._recorder is not None:
+                    self._recorder.add(a, t_chunk, rec[:, R_U], rec[:, R_Y])
+            self._k += n
+            self._t = self._k * self._dt
+            snap = self._snapshot()
         for sub in list(self._subscribers):
             sub.put(snap)
         return snap
+
+    def _enable_if_ready(self) -> None:
+        """enable_on_start: once the driver is ready (a link up and a position read), enable
+        it holding where it stands; given up if a fault is latched first."""
+        drv = self._driver
+        if drv.faults() or drv.enabled:
+            self._enable_when_ready = False
+            return
+        if not getattr(drv, "ready", True):
+            return
+        self._enable_when_ready = False
+        try:
+            drv.enable()
+        except DriverFault:
+            return
+        for a, ax in self._axes.items():  # start from where it is: nothing moves until told to
+            ax.y_rad = drv.read_encoder(a)
+            if not self._manual:
+                self._last_target[a] = ax.y_rad
 
     def _run_per_sample(self, targets: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
         out = {a: np.zeros((n, N_REC)) for a in self._axes}
@@ -452,15 +528,6 @@ class Engine:
 
     def _run_camera(self, cam: CameraDriver, targets: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
         """One chunk on a PTZ camera: the chunk's last target out, the camera's angle in."""
-        if self._enable_when_ready and cam.ready and not cam.faults():
-            self._enable_when_ready = False
-            cam.enable()
-            for a in AXES:  # start from where the camera points: nothing moves until told to
-                y = cam.read_encoder(a)
-                self._axes[a].y_rad = y
-                if not self._manual:
-                    self._last_target[a] = y
-                    targets[a][:] = y
         out = {}
         for a in AXES:
             if cam.enabled:
@@ -534,4 +601,5 @@ class Engine:
         return float(cs[S_TH]), float(cs[S_OM])
 
 
-__all__ = ["MODES", "Engine", "EngineConfig", "EngineStatus", "TelemetrySnapshot", "TelemetrySubscription"]
+__all__ = ["MODES", "Engine", "EngineConfig", "EngineStatus", "LoopTiming", "TelemetrySnapshot",
+           "TelemetrySubscription"]

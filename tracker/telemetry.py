@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import threading
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -41,28 +43,64 @@ class EngineStatus:
 
 
 class TelemetrySubscription:
-    """Async iterator of snapshots; a slow consumer loses the oldest ones. ``close()`` to leave."""
+    """Async iterator of snapshots; a slow consumer loses the oldest ones. ``close()`` to leave.
+
+    Thread-safe: the engine's thread puts, a consumer on an event loop iterates (it is woken
+    through ``call_soon_threadsafe``; the engine never waits for it).
+    """
 
     def __init__(self, maxsize: int, on_close: Callable[[TelemetrySubscription], None]) -> None:
         self._on_close = on_close
-        self._queue: asyncio.Queue[TelemetrySnapshot | None] = asyncio.Queue(maxsize=max(1, maxsize))
+        self._maxsize = max(1, maxsize)
+        self._items: deque[TelemetrySnapshot | None] = deque()
+        self._lock = threading.Lock()
+        self._waiter: asyncio.Future[None] | None = None
+        self._waiter_loop: asyncio.AbstractEventLoop | None = None
         self.dropped = 0
         self.closed = False
 
     def put(self, item: TelemetrySnapshot | None) -> None:
-        """Publish (None ends the iteration); drops the oldest when full."""
-        if self._queue.full():
-            self._queue.get_nowait()
-            self.dropped += 1
-        self._queue.put_nowait(item)
+        """Publish (None ends the iteration); drops the oldest when full. Any thread."""
+        with self._lock:
+            if len(self._items) >= self._maxsize:
+                self._items.popleft()
+                self.dropped += 1
+            self._items.append(item)
+            waiter, loop = self._waiter, self._waiter_loop
+            self._waiter = self._waiter_loop = None
+        if waiter is not None and loop is not None:
+            try:
+                running = asyncio.get_running_loop()
+            except RuntimeError:
+                running = None
+            if running is loop:
+                _wake(waiter)
+            else:
+                try:
+                    loop.call_soon_threadsafe(_wake, waiter)
+                except RuntimeError:  # the consumer's loop is closed
+                    pass
+
+    def get_nowait(self) -> TelemetrySnapshot | None:
+        """The oldest queued item; IndexError when there is none."""
+        with self._lock:
+            return self._items.popleft()
 
     def __aiter__(self) -> TelemetrySubscription:
         return self
 
     async def __anext__(self) -> TelemetrySnapshot:
-        if self.closed and self._queue.empty():
-            raise StopAsyncIteration
-        item = await self._queue.get()
+        loop = asyncio.get_running_loop()
+        while True:
+            with self._lock:
+                if self._items:
+                    item = self._items.popleft()
+                    break
+                if self.closed:
+                    raise StopAsyncIteration
+                waiter = loop.create_future()
+                self._waiter, self._waiter_loop = waiter, loop
+            await waiter
         if item is None:
             self.closed = True
             raise StopAsyncIteration
@@ -74,3 +112,8 @@ class TelemetrySubscription:
             self._on_close(self)
             self.closed = True
             self.put(None)
+
+
+def _wake(waiter: asyncio.Future[None]) -> None:
+    if not waiter.done():
+        waiter.set_result(None)

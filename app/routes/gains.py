@@ -64,10 +64,25 @@ def _model_json(svc: Service, axis: str) -> dict[str, Any]:
     return model_to_json(rig.axis_model(svc.engine, axis), axis)
 
 
+_MARGINS: dict[str, dict[str, Any]] = {}  # margins of recent (model, gains, floor): ~0.2 s of CPU each
+
+
 async def margins_of(svc: Service, who: Principal, axis: str, gains: Any) -> dict[str, Any]:  # noqa: ANN401
-    """Phase/gain margins and stability of ``gains`` on the axis model (DesignReport as JSON)."""
+    """Phase/gain margins and stability of ``gains`` on the axis model (DesignReport as JSON).
+
+    Remembered per model, gains and floor: a console polling GET /axes/{axis}/gains would
+    otherwise keep a worker busy (and get 429s) redoing python-control's analysis."""
     floor = svc.settings.min_phase_margin_deg
-    return await svc.work.run(who, heavy.gain_margins, _model_json(svc, axis), gains, floor)
+    model_json = _model_json(svc, axis)
+    key = repr((model_json, gains, floor))
+    cached = _MARGINS.get(key)
+    if cached is not None:
+        return dict(cached)
+    out: dict[str, Any] = await svc.work.run(who, heavy.gain_margins, model_json, gains, floor)
+    if len(_MARGINS) >= 64:
+        _MARGINS.clear()
+    _MARGINS[key] = dict(out)
+    return out
 
 
 @router.get(

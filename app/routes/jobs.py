@@ -2,8 +2,9 @@
 
 Friction-ID runs the seed's experiment automated — constant voltages across the range, the
 steady speed of each — through ``tracker.workbench.friction_id`` on a simulated rig built like
-the live one (``source="rig"``) or like the practice rig (``source="practice"``), so the live
-camera keeps tracking while the job runs. On real hardware the job would take the axis over.
+the live one (``source="rig"``) or like the practice rig (``source="practice"``), in a worker
+process, so the live camera keeps tracking, on time, while the job runs. On real hardware the
+job would take the axis over.
 """
 
 from __future__ import annotations
@@ -12,14 +13,13 @@ from typing import Any
 
 from fastapi import APIRouter
 
-from app import rig
 from app.auth import Engineer, Viewer
 from app.errors import NotFound
-from app.jobs import CancelToken, Progress
-from app.modelio import plain
+from app.modelio import model_to_json
 from app.routes.practice import practice_model, practice_state
 from app.schemas import FrictionJobIn, RowId
 from app.service import Svc
+from app.worker_tasks import friction_job
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -29,14 +29,11 @@ async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dic
     hidden = practice_model(svc.db) if body.source == "practice" else None
     if body.source == "practice" and hidden is None:
         raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
-    settings = svc.settings
     hidden_axis = (practice_state(svc.db) or {}).get("axis", body.axis)
-
-    def work(progress: Progress, cancel: CancelToken) -> dict[str, Any]:
-        driver = rig.build_driver(settings, hidden=hidden, axis=hidden_axis)
-        return plain(rig.run_friction_id(driver, body.axis, progress, cancel))
-
-    job_id = svc.jobs.start("friction-id", body.model_dump(), work)
+    rig_config = None if svc.settings.rig_config is None else str(svc.settings.rig_config)
+    hidden_json = None if hidden is None else model_to_json(hidden, hidden_axis)
+    job_id = svc.jobs.start("friction-id", body.model_dump(), friction_job, rig_config, hidden_json,
+                            hidden_axis, body.axis)
     return svc.db.get_job(job_id) or {"id": job_id}
 
 

@@ -1,4 +1,5 @@
-"""GET /status: where the camera points, what it is doing, who holds manual control; GET /viewer."""
+"""GET /status: where the camera points, what it is doing, who holds manual control, how well the
+control loop keeps its clock; GET /viewer."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from fastapi import APIRouter
 
 from app import rig
 from app.auth import Engineer, Viewer
-from app.schemas import StatusOut
+from app.schemas import LoopOut, StatusOut
 from app.service import Service, Svc
 
 router = APIRouter(tags=["status"])
@@ -34,7 +35,19 @@ def status_of(svc: Service) -> StatusOut:
         audio=audio_state(svc),
         viewer=svc.viewer.scene_state() if svc.viewer is not None else None,
         driver=rig.driver_state(svc.engine),
+        loop=loop_of(svc),
     )
+
+
+def loop_of(svc: Service) -> LoopOut | None:
+    """The engine loop's timing in milliseconds."""
+    timing = getattr(svc.engine, "timing", None)
+    if timing is None:
+        return None
+    t = timing()
+    return LoopOut(period_ms=1e3 * t.period_s, ticks=t.ticks, last_lateness_ms=1e3 * t.last_lateness_s,
+                   max_lateness_ms=1e3 * t.max_lateness_s, mean_lateness_ms=1e3 * t.mean_lateness_s,
+                   overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority)
 
 
 @router.get("/status", response_model=StatusOut, summary="Angles (deg), mode, tracking, talker, faults")

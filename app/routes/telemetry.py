@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
@@ -70,6 +71,7 @@ async def telemetry(ws: WebSocket) -> None:
     sub = svc.hub.subscribe(maxsize=256, key_id=who.key_id)
     reader = asyncio.create_task(_drain_client(ws))
     ended = asyncio.create_task(sub.ended.wait())
+    sender: asyncio.Task[None] | None = None
     try:
         await ws.send_json(
             {
@@ -79,20 +81,30 @@ async def telemetry(ws: WebSocket) -> None:
                 "rate_hz": svc.settings.telemetry_rate_hz,
             }
         )
-        while True:
-            get = asyncio.ensure_future(sub.queue.get())
-            done, _ = await asyncio.wait({get, reader, ended}, return_when=asyncio.FIRST_COMPLETED)
-            if reader in done or ended in done:
-                get.cancel()
-                break
-            await ws.send_text(json.dumps(get.result(), separators=(",", ":")))
+        # Tasks for the life of the connection (not futures per frame): the sender streams, the
+        # reader notices the client leaving, ``ended`` a revoked key; the first to end ends all.
+        sender = asyncio.create_task(_send_frames(ws, sub))
+        await asyncio.wait({reader, sender, ended}, return_when=asyncio.FIRST_COMPLETED)
         if ended.done():
+            sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await sender
             await ws.close(code=4401, reason=sub.end_reason)
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
         sub.close()
-        ended.cancel()
-        reader.cancel()
-        with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError, Exception):
-            await reader
+        for task in (ended, reader, sender):
+            if task is not None:
+                task.cancel()
+                with contextlib.suppress(Exception, asyncio.CancelledError):
+                    await task
+
+
+async def _send_frames(ws: WebSocket, sub: Any) -> None:
+    """Send each frame's JSON (encoded once by the hub for every client)."""
+    with contextlib.suppress(WebSocketDisconnect, RuntimeError):
+        while True:
+            frame = await sub.queue.get()
+            text = getattr(frame, "text", None)
+            await ws.send_text(text if isinstance(text, str) else json.dumps(frame, separators=(",", ":")))

@@ -102,7 +102,8 @@ function showFrame(f) {
 
 function describeDriver(d) {
   if (!d || d.kind === "sim") return "simulated rig";
-  const parts = [`${d.url} (${d.profile})`, d.state];
+  const parts = [d.profile ? `${d.url} (${d.profile})` : d.url, d.state];
+  if (d.board) parts.push(d.board);
   if (d.achieved_rate_hz != null) parts.push(`${fmt(d.achieved_rate_hz, 0)} Hz`);
   if (d.rtt_ms_median != null) parts.push(`RTT ${fmt(d.rtt_ms_median, 0)} ms`);
   if (d.retransmits) parts.push(`${d.retransmits} resent`);

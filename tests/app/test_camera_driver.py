@@ -87,7 +87,7 @@ def test_service_reports_the_camera_and_follows_pointing(tmp_path: Path, camera:
     ("overrides", "match"),
     [
         ({"driver": "visca+udp://cam:99999"}, "setting 'driver'"),
-        ({"driver": "serial:///dev/ttyUSB0"}, "unknown scheme"),
+        ({"driver": "modbus:///dev/ttyUSB0"}, "unknown scheme"),
         ({"camera_profile": "nikon"}, "setting 'camera_profile'.*unknown camera profile"),
         ({"camera_rate_hz": 500}, "setting 'camera_rate_hz'"),
     ],

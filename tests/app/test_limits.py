@@ -308,20 +308,34 @@ def test_limits_are_settings(tmp_path: Path) -> None:
     assert (s.heavy_workers, s.heavy_queue, s.heavy_per_key, s.bad_key_limit) == (1, 4, 2, 10)
 
 
+def _until_cancelled(progress: Any, cancel: Any) -> dict[str, Any]:
+    """A job (run in a worker process) that waits until it is cancelled."""
+    end = time.monotonic() + 30.0
+    while not cancel() and time.monotonic() < end:
+        time.sleep(0.01)
+    return {"ok": True}
+
+
 async def test_jobs_are_capped(tmp_path: Path) -> None:
     """Bug: no cap on concurrent work; friction-ID jobs each took a thread without limit."""
-    import threading
-
     from app.db import Database
     from app.jobs import JobRunner
+    from app.workers import WorkerPool
 
-    release = threading.Event()
-    runner = JobRunner(Database(tmp_path / "jobs.sqlite3"), max_running=2)
-    ids = [runner.start("wait", {}, lambda progress, cancel: {"ok": release.wait(10)}) for _ in range(2)]
-    with pytest.raises(TooManyRequests, match="max_running_jobs"):
-        runner.start("wait", {}, lambda progress, cancel: {})
-    release.set()
-    for job_id in ids:
+    pool = WorkerPool(1)
+    runner = JobRunner(Database(tmp_path / "jobs.sqlite3"), pool, max_running=2)
+    try:
+        ids = [runner.start("wait", {}, _until_cancelled) for _ in range(2)]
+        with pytest.raises(TooManyRequests, match="max_running_jobs"):
+            runner.start("wait", {}, _until_cancelled)
+        for job_id in ids:
+            runner.cancel(job_id)
+        for job_id in ids:
+            await runner.wait(job_id)
+        assert [runner.db.get_job(i)["state"] for i in ids] == ["cancelled", "cancelled"]  # type: ignore[index]
+        job_id = runner.start("wait", {}, _until_cancelled)  # room again
+        runner.cancel(job_id)
         await runner.wait(job_id)
-    runner.start("wait", {}, lambda progress, cancel: {})  # room again
-    await runner.shutdown()
+    finally:
+        await runner.shutdown()
+        pool.shutdown()

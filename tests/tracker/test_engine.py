@@ -220,7 +220,7 @@ def test_a_talker_source_reports_who_and_where_it_heard() -> None:
     e.set_tracking(True)
     sub = e.subscribe()
     e.step_chunk()  # the driver is still disabled: the estimate is reported all the same
-    snap = sub._queue.get_nowait()
+    snap = sub.get_nowait()
     assert snap is not None and snap.source == "audio" and snap.estimate_azimuth_rad == 0.21
     assert e.status().active_talker == "alice" and e.status().mode == "disabled"
     e.driver.enable()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import zlib
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -45,7 +46,7 @@ from tests.truthgen.presets import (
 )
 from tests.truthgen.run import Log, simulate
 
-MATRIX_SEED = 20250909
+MATRIX_SEED = int(os.environ.get("TRUTHGEN_MATRIX_SEED", "20250909"))  # another seed: a fresh blind set
 DURATION_S = 30.0
 RATES_HZ: tuple[int, ...] = (250, 500, 1000, 2000)
 ENCODER_COUNTS: tuple[int, ...] = (500, 1000, 2048, 4000, 4096, 8192, 10000, 16384, 20000)

@@ -28,6 +28,7 @@ COMMAND_MODULES = (
     "tracker.cli.friction",
     "tracker.cli.audio",
     "tracker.cli.camera",
+    "tracker.cli.motor",
 )
 # The first word of the command line -> the one module that registers it. Only that module is
 # imported (the others pull in scipy, python-control, pyroomacoustics: seconds of start-up).
@@ -38,6 +39,7 @@ COMMAND_OWNERS = {
     "friction-id": "tracker.cli.friction",
     "audio": "tracker.cli.audio",
     "camera-emulator": "tracker.cli.camera",
+    "motor-emulator": "tracker.cli.motor",
 }
 
 

@@ -3,11 +3,14 @@
 ::
 
     tracker friction-id --axis pan|tilt [--json]
-                        [--hidden-effects RIG.json | --effects a,b --set NAME=VALUE ...]
+                        [--hidden-effects RIG.json | --effects a,b --set NAME=VALUE ...
+                         | --driver serial:///dev/ttyUSB0?baud=1000000 [--gear-ratio R]]
 
 ``RIG.json`` is the simulated rig's config (see :mod:`tracker.drivers.sim`); ``--effects`` and
-``--set`` give the rig hidden effects on the chosen axis instead. Prints per-direction viscous
-and Coulomb friction, the break-away torques and (with ``--json``) the torque-vs-velocity points.
+``--set`` give the rig hidden effects on the chosen axis instead; ``--driver`` runs it on a
+real DC rig behind its motor controller board (or ``tracker motor-emulator``), in real time.
+Prints per-direction viscous and Coulomb friction, the break-away torques and (with
+``--json``) the torque-vs-velocity points.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import json
 import math
 import sys
 
+from tracker.drivers.motor import MotorDriver
 from tracker.drivers.sim import SimDriver, load_rig_config, rig_models
 from tracker.errors import ConfigError
 from tracker.plant.effects import get_param
@@ -75,10 +79,30 @@ def format_result(res: FrictionResult) -> str:
     return "\n".join(lines)
 
 
+def _serial_rig(args: argparse.Namespace) -> MotorDriver:
+    from tracker.drivers.serial_motor import SerialMotorDriver
+    from tracker.drivers.spec import parse_driver_url
+
+    if args.hidden_effects or args.effects or args.set:
+        raise ConfigError("--driver runs on a real rig: --hidden-effects, --effects and --set do not apply")
+    spec = parse_driver_url(args.driver)
+    if spec.kind != "serial":
+        raise ConfigError(f"--driver {args.driver!r}: friction-ID needs a voltage-driven rig (serial://...)")
+    driver = SerialMotorDriver(spec, {args.axis: args.gear_ratio} if args.gear_ratio else None)
+    driver.start()
+    driver.wait_ready(5.0)
+    return driver
+
+
 def run(args: argparse.Namespace) -> int:
     """``tracker friction-id``."""
-    driver = _rig(args)
-    res = run_friction_id(driver, args.axis, voltages_per_direction=args.voltages)
+    driver = _serial_rig(args) if args.driver else _rig(args)
+    try:
+        res = run_friction_id(driver, args.axis, voltages_per_direction=args.voltages)
+    finally:
+        close = getattr(driver, "close", None)
+        if close is not None:
+            close()
     if args.json:
 
         def clean(v: object) -> object:
@@ -114,6 +138,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument(
         "--voltages", type=int, default=10, help="constant-voltage runs per direction (default 10)"
     )
+    p.add_argument("--driver", default=None, metavar="URL",
+                   help="run on a DC rig's motor controller board: serial:///dev/ttyUSB0?baud=1000000")
+    p.add_argument("--gear-ratio", type=float, default=None,
+                   help="with --driver: motor revolutions per load revolution of this axis (default 17.01)")
     p.set_defaults(func=run)
 
 

@@ -39,7 +39,10 @@ def history_length(plant_p: FloatArray, dt_s: float) -> int:
     return int(math.ceil(plant_p[I_DELAY] / dt_s)) + 2
 
 
-@njit(cache=True)
+# nogil: the engine's thread runs a chunk while the service's thread keeps serving (arrays only,
+# each engine's own). controller_step (per sample, ~2 µs) keeps the GIL: giving it up and
+# taking it back every sample would cost more than it frees.
+@njit(cache=True, nogil=True)
 def run_chunk(
     plant_p: FloatArray,
     cp: FloatArray,

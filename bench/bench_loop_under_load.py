@@ -1,0 +1,311 @@
+"""Control ticks and telemetry frames of the console under load: the service on 127.0.0.1 (the
+twin), workbench uploads and diagnoses running, 50 telemetry WebSocket viewers and a burst of
+REST calls. Prints the largest gap between control ticks and between telemetry frames, ticks
+late by more than 2 ms and overruns, idle and under load.
+
+    python bench/bench_loop_under_load.py [--tree PATH] [--chunk-ms 10] [--seconds 20]
+                                          [--viewers 50] [--rest 600] [--diagnoses 2]
+
+``--tree`` runs the service from another checkout (e.g. main, for the figures before); the
+service gets ``TRACKER_CONTROL_CHUNK_MS`` (a tree without that setting ignores it). Control
+ticks are time-stamped inside the service by a probe that wraps ``Engine.step_chunk`` (works on
+any tree); perf_counter is CLOCK_MONOTONIC, comparable between the two processes. Everything
+is bounded: counts and seconds, loopback only. The viewers run in this process on the same
+machine, so their frame gaps include this process's own delays.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import websockets
+
+ROOT = Path(__file__).resolve().parent.parent
+PROBE = """
+import array, atexit, os, sys, time
+import tracker.engine as engine_module
+_ticks = array.array("d")
+_step = engine_module.Engine.step_chunk
+def step_chunk(self):
+    _ticks.append(time.perf_counter())
+    return _step(self)
+engine_module.Engine.step_chunk = step_chunk
+def _dump():
+    with open(os.environ["BENCH_TICKS"], "wb") as f:
+        _ticks.tofile(f)
+if __name__ == "__main__":  # not in the service's spawned worker processes
+    atexit.register(_dump)
+    from tracker.cli import main
+    sys.exit(main(sys.argv[1:]))
+"""
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def measurement_csv(seconds: float) -> str:
+    """A closed-loop measurement of the pan twin with ripple the base model lacks."""
+    from tracker.plant.model import AxisModel
+    from tracker.workbench.data import format_log
+    from tracker.workbench.experiments import generate_measurement
+
+    truth = AxisModel.for_axis("pan", ["ripple"], {"ripple.amplitude": 0.01, "ripple.cycles_per_rev": 12.0})
+    return str(format_log(generate_measurement(truth, duration_s=seconds, seed=4)))
+
+
+class Viewer:
+    def __init__(self) -> None:
+        self.arrivals: list[float] = []
+
+
+async def viewer(url: str, key: str, v: Viewer, stop: asyncio.Event) -> None:
+    async with websockets.connect(url, additional_headers={"X-API-Key": key}, max_queue=None) as ws:
+        await ws.recv()  # hello
+        while not stop.is_set():
+            try:
+                msg = await asyncio.wait_for(ws.recv(), timeout=0.5)
+            except TimeoutError:
+                continue
+            if isinstance(msg, str) and msg.startswith('{"type":"frame"'):
+                v.arrivals.append(time.perf_counter())
+
+
+async def workbench(api: str, h: dict[str, str], csv: str, n: int, log: list[str]) -> None:
+    async with httpx.AsyncClient(timeout=300.0) as c:
+        for i in range(n):
+            t0 = time.perf_counter()
+            r = await c.post(
+                f"{api}/workbench/measurements",
+                headers=h,
+                data={"axis": "pan"},
+                files={"file": (f"bench{i}.csv", csv.encode(), "text/csv")},
+            )
+            r.raise_for_status()
+            mid = r.json()["id"]
+            t1 = time.perf_counter()
+            r = await c.post(f"{api}/workbench/measurements/{mid}/diagnose", headers=h, json={})
+            r.raise_for_status()
+            log.append(
+                f"upload {t1 - t0:.1f} s, diagnose {time.perf_counter() - t1:.1f} s (started at {t0:.3f})"
+            )
+
+
+async def rest_burst(api: str, h: dict[str, str], n: int, concurrency: int, refused: list[int]) -> float:
+    """``n`` calls, ``concurrency`` at a time; 429s (a tree that caps heavy requests) are counted."""
+    paths = ["/status", "/presets", "/axes/pan/gains", "/jobs", "/workbench/measurements"]
+    sem = asyncio.Semaphore(concurrency)
+    t0 = time.perf_counter()
+    async with httpx.AsyncClient(timeout=60.0) as c:
+
+        async def one(i: int) -> None:
+            async with sem:
+                if i % 10 == 9:
+                    r = await c.put(f"{api}/tracking", headers=h, json={"enabled": i % 20 == 9})
+                else:
+                    r = await c.get(api + paths[i % len(paths)], headers=h)
+                if r.status_code == 429:
+                    refused.append(i)
+                else:
+                    r.raise_for_status()
+
+        await asyncio.gather(*(one(i) for i in range(n)))
+    return time.perf_counter() - t0
+
+
+def tick_figures(ticks: np.ndarray, t0: float, t1: float, period_s: float) -> dict[str, float]:
+    sel = ticks[(ticks >= t0) & (ticks <= t1)]
+    gaps = np.diff(sel)
+    if gaps.size == 0:
+        return {"ticks": 0}
+    # Lateness against the loop's own grid: the earliest tick (relative to k·period) is on time.
+    k = np.arange(sel.size)
+    late = (sel - k * period_s) - np.min(sel - k * period_s)
+    return {
+        "ticks": int(sel.size),
+        "max_gap_ms": 1e3 * float(gaps.max()),
+        "p99_gap_ms": 1e3 * float(np.percentile(gaps, 99)),
+        "late_2ms": int(np.sum(gaps > period_s + 2e-3)),
+        "overruns": int(np.sum(gaps > 2 * period_s)),
+        "drift_ms": 1e3 * float(late[-1]),
+    }
+
+
+def frame_figures(viewers: list[Viewer], t0: float, t1: float) -> dict[str, float]:
+    gaps = []
+    per_viewer_max = []
+    frames = 0
+    for v in viewers:
+        a = np.asarray(v.arrivals)
+        a = a[(a >= t0) & (a <= t1)]
+        frames += a.size
+        if a.size > 1:
+            g = np.diff(a)
+            gaps.append(g)
+            per_viewer_max.append(g.max())
+    if not gaps:
+        return {"frames": frames}
+    all_gaps = np.concatenate(gaps)
+    return {
+        "frames": frames,
+        "rate_hz_per_viewer": frames / max(len(viewers), 1) / (t1 - t0),
+        "max_gap_ms": 1e3 * float(all_gaps.max()),
+        "p99_gap_ms": 1e3 * float(np.percentile(all_gaps, 99)),
+        "median_viewer_max_gap_ms": 1e3 * float(np.median(per_viewer_max)),
+    }
+
+
+async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: str) -> dict[str, Any]:
+    h = {"X-API-Key": key}
+    out: dict[str, Any] = {}
+    await asyncio.sleep(2.0)  # the engine settles
+    t_idle0 = time.perf_counter()
+    await asyncio.sleep(args.idle_seconds)
+    out["idle"] = (t_idle0, time.perf_counter())
+    stop = asyncio.Event()
+    views = [Viewer() for _ in range(args.viewers)]
+    tasks = [asyncio.create_task(viewer(ws_url, key, v, stop)) for v in views]
+    await asyncio.sleep(1.0)  # all connected
+    log: list[str] = []
+    t_load0 = time.perf_counter()
+    job = asyncio.create_task(workbench(api, h, csv, args.diagnoses, log))
+    refused: list[int] = []
+    rest_s = await rest_burst(api, h, args.rest, 20, refused)
+    out["refused"] = len(refused)
+    try:
+        await asyncio.wait_for(
+            asyncio.shield(job), timeout=max(0.0, args.seconds - (time.perf_counter() - t_load0))
+        )
+    except TimeoutError:
+        pass
+    t_load1 = time.perf_counter()
+    out["load"] = (t_load0, t_load1)
+    out["job_done"] = job.done()
+    out["rest_s"] = rest_s
+    out["log"] = log
+    async with httpx.AsyncClient(timeout=30.0) as c:
+        out["status_loop"] = (await c.get(f"{api}/status", headers=h)).json().get("loop")
+    stop.set()
+    await asyncio.gather(*tasks, return_exceptions=True)
+    try:  # let the service finish its diagnosis before it is stopped (bounded)
+        await asyncio.wait_for(job, timeout=300.0)
+    except (TimeoutError, httpx.HTTPError):
+        pass
+    out["viewers"] = views
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tree", default=str(ROOT), help="checkout to run the service from")
+    parser.add_argument("--chunk-ms", type=float, default=10.0, help="the control tick (ms)")
+    parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the loop thread")
+    parser.add_argument("--nice", type=int, default=0, help="run the service this much nicer (<0: less nice)")
+    parser.add_argument("--seconds", type=float, default=20.0, help="longest load phase (s)")
+    parser.add_argument("--idle-seconds", type=float, default=5.0)
+    parser.add_argument("--viewers", type=int, default=50)
+    parser.add_argument("--rest", type=int, default=600, help="REST calls in the burst")
+    parser.add_argument("--diagnoses", type=int, default=2, help="uploads + diagnoses, one after the other")
+    parser.add_argument("--measurement-s", type=float, default=30.0, help="length of the uploaded log (s)")
+    args = parser.parse_args()
+    args.viewers, args.rest, args.diagnoses = (
+        min(args.viewers, 200),
+        min(args.rest, 5000),
+        min(args.diagnoses, 5),
+    )
+    csv = measurement_csv(args.measurement_s)
+    port = free_port()
+    with tempfile.TemporaryDirectory() as tmp:
+        probe = Path(tmp) / "bench_probe.py"
+        probe.write_text(PROBE)
+        ticks_file = Path(tmp) / "ticks.bin"
+        env = {
+            **os.environ,
+            "PYTHONPATH": f"{args.tree}{os.pathsep}{tmp}",
+            "BENCH_TICKS": str(ticks_file),
+            "TRACKER_DATA_DIR": str(Path(tmp) / "data"),
+            "TRACKER_VIEWER_ENABLED": "false",
+            "TRACKER_AUDIO_ENABLED": "false",
+            "TRACKER_LOG_LEVEL": "warning",
+            "TRACKER_CONTROL_CHUNK_MS": f"{args.chunk_ms:g}",
+            "TRACKER_CONTROL_LOOP_PRIORITY": str(args.priority),
+        }
+        proc = subprocess.Popen(
+            [sys.executable, str(probe), "serve", "--host", "127.0.0.1", "--port", str(port)],
+            env=env,
+            cwd=tmp,
+            stdout=subprocess.DEVNULL,
+            preexec_fn=(lambda: os.nice(args.nice)) if args.nice else None,
+        )
+        api = f"http://127.0.0.1:{port}/api/v1"
+        try:
+            end = time.monotonic() + 180.0
+            while True:
+                try:
+                    if httpx.get(f"{api}/health", timeout=1.0).status_code == 200:
+                        break
+                except httpx.HTTPError:
+                    pass
+                if time.monotonic() > end or proc.poll() is not None:
+                    raise SystemExit("the service did not start")
+                time.sleep(0.2)
+            key = (Path(tmp) / "data" / "admin.key").read_text().strip()
+            res = asyncio.run(bench(args, api, f"ws://127.0.0.1:{port}/api/v1/telemetry", key, csv))
+        finally:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(10)
+        ticks = (
+            np.frombuffer(ticks_file.read_bytes(), dtype=np.float64) if ticks_file.exists() else np.zeros(0)
+        )
+    period = args.chunk_ms / 1e3
+    load_avg = os.getloadavg()
+    print(
+        f"tree {args.tree}, tick {args.chunk_ms:g} ms, priority {args.priority}, nice {args.nice}, "
+        f"{args.viewers} viewers, "
+        f"{args.rest} REST calls ({res['refused']} refused with 429) "
+        f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
+        f"{'done' if res['job_done'] else 'still running at the end'}; load average {load_avg[0]:.1f}"
+    )
+    for line in res["log"]:
+        print(f"  {line}")
+    for phase in ("idle", "load"):
+        t0, t1 = res[phase]
+        tf = tick_figures(ticks, t0, t1, period)
+        print(f"{phase:5s} control ticks: {json.dumps({k: round(v, 2) for k, v in tf.items()})}")
+    t0, t1 = res["load"]
+    sel = ticks[(ticks >= t0) & (ticks <= t1)]
+    big = [
+        (float(a - t0), 1e3 * float(b - a)) for a, b in zip(sel[:-1], sel[1:], strict=True) if b - a > 0.05
+    ]
+    print(
+        f"load started at {t0:.3f}; gaps over 50 ms at (s after, ms): "
+        + ", ".join(f"+{a:.2f} {g:.0f}" for a, g in big[:20])
+    )
+    ff = frame_figures(res["viewers"], t0, t1)
+    print(f"load  telemetry frames: {json.dumps({k: round(v, 2) for k, v in ff.items()})}")
+    if res["status_loop"] is not None:
+        print(f"/status loop (since start): {json.dumps(res['status_loop'])}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
