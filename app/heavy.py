@@ -122,6 +122,21 @@ def practice_run(
     return {"csv": text, **first_version(label, axis, text)}
 
 
+def model_check(
+    axis: str,
+    recent: tuple[Any, Any, Any] | None,
+    candidate_json: dict[str, Any],
+    current_json: dict[str, Any],
+) -> dict[str, Any]:
+    """Does the candidate model predict the axis's recent motion (``recent``: t s, u V, θ rad
+    arrays, or None)? ``ModelCheck.to_dict()`` (SI units; tracker.model_check)."""
+    from tracker.model_check import check_model
+
+    meas = None if recent is None else Measurement(*recent, f"engine (recent):{axis}")
+    check = check_model(axis, meas, model_from_json(candidate_json), model_from_json(current_json))
+    return check.to_dict()
+
+
 def result_json(value: Any) -> Any:  # noqa: ANN401 - any result object in, JSON-ready value out
     """JSON-ready copy of a result object (dataclass, numpy values, nested containers)."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):

@@ -108,6 +108,9 @@ class GainsOut(BaseModel):
     gains: dict[str, Any]
     margins: dict[str, Any]
     min_phase_margin_deg: float
+    model_check: dict[str, Any] | None = Field(
+        default=None, description="PUT /axes/{axis}/model: how the model predicted the axis's recent motion"
+    )
 
 
 class GainsIn(Strict):

@@ -23,8 +23,14 @@ holds where it is.
 
 Modes: "manual" (``point``/``jog`` hold until ``release`` or ``set_tracking(True)``),
 "tracking" (targets from the source), "hold" (no target: keep the last one), "disabled"
-(driver disabled), "fault" (a latched driver fault; the driver disables itself).
-Targets from the source are queried once per chunk and interpolated across it (10 ms latency).
+(driver disabled), "fault" (a latched driver fault; the driver disables itself, the manual
+override ends, and ``point``, ``jog`` and ``set_tracking(True)`` raise DriverFault until the
+driver's faults are cleared). Targets from the source are queried once per chunk and
+interpolated across it (10 ms latency).
+
+The soft-limit guard counts on each axis's rated braking (``EngineConfig.envelopes``), not on
+the controller's model; a model offered with :meth:`Engine.set_model` must first predict the
+axis's last ``RECENT_S`` seconds (:mod:`tracker.model_check`).
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tracker.control.closed_loop import N_REC, R_U, R_Y
 from tracker.control.design import (
@@ -45,16 +52,18 @@ from tracker.control.design import (
     check_gains,
     design_controller,
 )
+from tracker.control.envelope import BrakingEnvelope
 from tracker.control.gains import ControllerGains
 from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits
 from tracker.control.loop import S_INIT, S_OM, S_REF, S_TH, controller_step, new_state, pack_controller
 from tracker.control.trajectory import DEFAULT_LIMITS, TrajectoryLimits
 from tracker.drivers.camera import CameraDriver
 from tracker.drivers.motor import AXES, ClosedLoopDriver, MotorDriver
-from tracker.errors import ConfigError, DriverFault
+from tracker.errors import ConfigError, DriverFault, ModelRefused
+from tracker.model_check import RECENT_S, ModelCheck, check_model
 from tracker.plant.model import AxisModel
 from tracker.realtime import LoopTiming, PacedLoop
-from tracker.recording import Recorder
+from tracker.recording import RecentLog, Recorder
 from tracker.targets import TargetSource, as_target
 from tracker.telemetry import EngineStatus, TelemetrySnapshot, TelemetrySubscription
 from tracker.workbench.data import Measurement
@@ -75,6 +84,9 @@ class EngineConfig:
     # The site's mount margin: the soft-limit guard's line sits this far inside the limits
     # (tracker.control.limits: a belt the model does not know needs its twist at full torque).
     guard_margin_rad: float = GUARD_MARGIN_RAD
+    # The rated braking of each axis the soft-limit guard counts on, whatever the model says
+    # (default: the seed hardware's, BrakingEnvelope.for_axis; a heavier payload lowers it).
+    envelopes: dict[str, BrakingEnvelope] | None = None
     # SCHED_FIFO priority of the real-time loop's thread (0: the normal class; tracker.realtime).
     loop_priority: int = 0
 
@@ -94,25 +106,28 @@ class _Axis:
         shaping: TrajectoryLimits,
         dt: float,
         guard_margin_rad: float = GUARD_MARGIN_RAD,
+        envelope: BrakingEnvelope | None = None,
     ) -> None:
         self.name = name
         self.model = model
         self.limits = SoftLimits.for_axis(name, guard_margin_rad)
+        self.envelope = envelope if envelope is not None else BrakingEnvelope.for_axis(name)
         self.shaping = shaping
         self.dt = dt
         self.gains = gains
-        self.cp = pack_controller(model, gains, dt, self.limits, shaping)
+        self.cp = self.pack(model, gains)
         self.cs = new_state()
         self.target_rad = 0.0
         self.u_v = 0.0
         self.y_rad = 0.0
 
-    def pack(self, model: AxisModel, gains: ControllerGains) -> np.ndarray:
-        """The packed controller for ``model`` and ``gains`` (ConfigError when packing refuses
-        them, e.g. a belt too soft for the limits); nothing changes yet."""
-        return pack_controller(model, gains, self.dt, self.limits, self.shaping)
+    def pack(self, model: AxisModel, gains: ControllerGains) -> NDArray[np.float64]:
+        """The packed controller for ``model`` and ``gains`` (the guard counting on the axis's
+        rated braking, ``self.envelope``; ConfigError when packing refuses them, e.g. a belt too
+        soft for the limits); nothing changes yet."""
+        return pack_controller(model, gains, self.dt, self.limits, self.shaping, envelope=self.envelope)
 
-    def use(self, model: AxisModel, gains: ControllerGains, cp: np.ndarray) -> None:
+    def use(self, model: AxisModel, gains: ControllerGains, cp: NDArray[np.float64]) -> None:
         """Switch to a controller made by :meth:`pack` (the engine's lock held)."""
         self.model, self.gains, self.cp = model, gains, cp
 
@@ -132,12 +147,20 @@ class Engine:
         self._dt = driver.sample_period_s
         self._n_chunk = max(1, int(round(self.config.chunk_s / self._dt)))
         models = self.config.models or {a: AxisModel.for_axis(a) for a in AXES}
+        envelopes = self.config.envelopes or {}
         self._axes: dict[str, _Axis] = {}
         for a in AXES:
             design = design_controller(models[a], self.config.controller, axis=a)
             self._axes[a] = _Axis(
-                a, models[a], design.gains, self.config.shaping[a], self._dt, self.config.guard_margin_rad
+                a,
+                models[a],
+                design.gains,
+                self.config.shaping[a],
+                self._dt,
+                self.config.guard_margin_rad,
+                envelopes.get(a),
             )
+        self._recent = RecentLog(AXES, int(round(RECENT_S / self._dt)))
         self._t = 0.0
         self._k = 0  # samples run; time is k·dt (no drift)
         self._tracking = False
@@ -174,9 +197,23 @@ class Engine:
         self._subscribers.add(sub)
         return sub
 
+    def require_no_fault(self) -> None:
+        """Raise DriverFault naming the latched faults, if any (commands that move the axes are
+        refused until the driver's faults are cleared)."""
+        faults = self._driver.faults()
+        if faults:
+            raise DriverFault(
+                f"drive fault latched ({'; '.join(faults)}): pointing, jogging and tracking are "
+                "refused until the fault is cleared"
+            )
+
     def set_tracking(self, enabled: bool) -> None:
-        """Follow the target source (True; ends a manual override) or hold (False)."""
+        """Follow the target source (True; ends a manual override) or hold (False).
+
+        Raises DriverFault when turning tracking on while a drive fault is latched."""
         with self._lock:
+            if enabled:
+                self.require_no_fault()
             self._tracking = bool(enabled)
             if enabled:
                 self._manual = False
@@ -189,7 +226,10 @@ class Engine:
             self._source, self._source_name = source, name
 
     def point(self, pan_rad: float, tilt_rad: float) -> None:
-        """Manual override: point at (pan, tilt) until ``release`` or ``set_tracking(True)``."""
+        """Manual override: point at (pan, tilt) until ``release`` or ``set_tracking(True)``.
+
+        Raises ConfigError outside the soft limits, DriverFault while a drive fault is latched."""
+        self.require_no_fault()
         for axis, value in (("pan", pan_rad), ("tilt", tilt_rad)):
             self._axes[axis].limits.check_target(axis, float(value))
         with self._lock:
@@ -205,8 +245,13 @@ class Engine:
             self._jog.clear()
 
     def jog(self, axis: str, rate_rad_s: float, timeout_s: float = 0.5) -> None:
-        """Move ``axis`` at ``rate_rad_s`` until a rate of 0, or ``timeout_s`` without renewal."""
+        """Move ``axis`` at ``rate_rad_s`` until a rate of 0, or ``timeout_s`` without renewal.
+
+        A rate other than 0 raises DriverFault while a drive fault is latched (stopping is
+        always allowed)."""
         ax = self._axis(axis)
+        if rate_rad_s != 0.0:
+            self.require_no_fault()
         if not (math.isfinite(rate_rad_s) and math.isfinite(timeout_s) and timeout_s > 0):
             raise ConfigError(
                 f"jog {axis}: rate {rate_rad_s!r} rad/s and timeout {timeout_s!r} s must be finite"
@@ -252,18 +297,39 @@ class Engine:
         """The model the controller of ``axis`` is designed on."""
         return self._axis(axis).model
 
-    def set_model(self, axis: str, model: AxisModel, **options: Any) -> ControllerDesign:
+    def recent_motion(self, axis: str) -> Measurement | None:
+        """The last ``RECENT_S`` seconds of ``axis`` (t, u, θ; a copy), None before there are enough."""
+        self._axis(axis)
+        with self._lock:
+            return self._recent.measurement(axis)
+
+    def check_model(self, axis: str, model: AxisModel) -> ModelCheck:
+        """Does ``model`` predict ``axis``'s recent motion (:func:`tracker.model_check.check_model`)?"""
+        return check_model(axis, self.recent_motion(axis), model, self.model(axis))
+
+    def set_model(
+        self, axis: str, model: AxisModel, check: ModelCheck | None = None, **options: Any
+    ) -> ControllerDesign:
         """Redesign ``axis``'s controller on ``model`` (e.g. one the workbench fitted) and use it.
 
+        ``model`` must first predict the axis's recent motion: ``check`` is
+        :meth:`check_model`'s result (computed here when None; a caller may compute it off the
+        loop's thread); ModelRefused (a ConfigError with the figures) when it does not.
         ``options`` go to the design (e.g. ``crossover_hz=17.0``). The limits, shaping and
         controller name stay; refused (ConfigError with the margins) like :meth:`set_gains`
-        when the new design misses the phase-margin floor.
+        when the new design misses the phase-margin floor, and (ConfigError) when the guard
+        cannot take the model (a belt too soft for the limits). Nothing changes when refused.
         """
         ax = self._axis(axis)
         design = design_controller(model, self.config.controller, axis=axis, **options)
         if not design.report.ok or design.report.phase_margin_deg < self.config.min_phase_margin_deg:
             raise ConfigError(f"{axis} redesign refused: {design.report.describe()}")
         cp = ax.pack(model, design.gains)
+        check = self.check_model(axis, model) if check is None else check  # off the lock (slow)
+        if check.axis != axis:
+            raise ConfigError(f"set_model {axis}: the check given is for {check.axis}")
+        if not check.accepted:
+            raise ModelRefused(f"{axis} model refused: {check.describe()}", check.to_dict())
         with self._lock:
             ax.use(model, design.gains, cp)
         return design
@@ -396,6 +462,9 @@ class Engine:
                 self._initialised = True
             if self._enable_when_ready:
                 self._enable_if_ready()
+            if self._driver.faults():  # a latched fault ends the manual override: hold where it stops
+                self._manual = False
+                self._jog.clear()
             targets = self._chunk_targets(n)
             t_chunk = self._t + np.arange(n, dtype=np.float64) * self._dt
         records: dict[str, np.ndarray] = {}  # the driver runs without the lock (a serial rig waits)
@@ -412,6 +481,7 @@ class Engine:
                 ax.y_rad = float(rec[-1, R_Y])
                 ax.u_v = float(rec[-1, R_U])
                 ax.target_rad = float(targets[a][-1])
+                self._recent.add(a, t_chunk, rec[:, R_U], rec[:, R_Y])
                 if self._recorder is not None:
                     self._recorder.add(a, t_chunk, rec[:, R_U], rec[:, R_Y])
             self._k += n

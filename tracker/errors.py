@@ -2,7 +2,9 @@
 
 TrackerError            root of everything the engine raises on purpose
 ├── ConfigError         bad configuration: unknown effect or parameter, out-of-bounds value,
-│                       unstable gains (also a ValueError)
+│   │                   unstable gains (also a ValueError)
+│   └── ModelRefused    a model offered to a controller does not predict the axis's recent
+│                       motion (``figures`` holds the check's numbers)
 ├── DataError           bad measurement or audio data: missing column, NaN, uneven sampling
 │                       (also a ValueError); the message names the line or column
 ├── DriverFault         a motor or audio driver failed or refused (device missing, fault latched)
@@ -14,6 +16,8 @@ The service (``app/``) maps these to HTTP statuses in one place; the command lin
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 
 class TrackerError(Exception):
     """Root of every error the engine raises on purpose."""
@@ -21,6 +25,17 @@ class TrackerError(Exception):
 
 class ConfigError(TrackerError, ValueError):
     """A configuration value is unknown, out of bounds or unsafe."""
+
+
+class ModelRefused(ConfigError):
+    """A model offered to a controller does not predict the axis's recent motion.
+
+    ``figures`` holds the check's numbers in SI units (``tracker.model_check.ModelCheck.to_dict``).
+    """
+
+    def __init__(self, message: str, figures: Mapping[str, object]) -> None:
+        super().__init__(message)
+        self.figures = dict(figures)
 
 
 class DataError(TrackerError, ValueError):

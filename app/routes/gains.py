@@ -4,12 +4,15 @@ A gain set that makes the loop unstable or puts the phase margin under the confi
 refused with 422 and the computed margins; nothing changes on the rig. Margins and predicted
 steps are computed in the worker processes (app/heavy.py), not on the engine's event loop; a set
 the design cannot evaluate (a gain of 1e308 overflows it) is refused with 422 naming the fields.
+A model offered for the redesign must first predict the axis's recent motion (tracker.model_check,
+in a worker process too): 422 with the figures (``model_check``, in degrees) when it does not.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
+import math
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from typing import Any
 
@@ -22,7 +25,8 @@ from app.errors import NotFound, Refused, check_axis
 from app.modelio import model_from_json, model_to_json
 from app.schemas import DesignModelIn, GainsIn, GainsOut, StepPreviewIn
 from app.service import Service, Svc
-from tracker.errors import ConfigError, TrackerError
+from tracker.errors import ConfigError, ModelRefused, TrackerError
+from tracker.model_check import ModelCheck
 
 router = APIRouter(tags=["gains"])
 
@@ -135,7 +139,8 @@ async def put_gains(axis: str, body: GainsIn, svc: Svc, who: Engineer) -> GainsO
 @router.put(
     "/axes/{axis}/model",
     response_model=GainsOut,
-    summary="Redesign the axis controller on a workbench model version (422 with margins when refused)",
+    summary="Redesign the axis controller on a workbench model version (422 with the margins or the "
+    "model check's figures when refused)",
 )
 async def put_model(axis: str, body: DesignModelIn, svc: Svc, who: Engineer) -> GainsOut:
     check_axis(axis)
@@ -144,14 +149,37 @@ async def put_model(axis: str, body: DesignModelIn, svc: Svc, who: Engineer) -> 
         raise NotFound(f"no model version {body.version_id}")
     if version["model"]["axis"] != axis:
         raise Refused(f"version {body.version_id} models the {version['model']['axis']} axis, not {axis}")
+    engine = svc.engine
+    model = model_from_json(version["model"])
+    # The recent motion is copied on the loop; the k-step check (~0.2 s) runs in a worker.
+    recent = engine.recent_motion(axis)
+    arrays = None if recent is None else (recent.t_s, recent.u_v, recent.theta_rad)
+    current = _model_json(svc, axis)
+    figures = await svc.work.run(who, heavy.model_check, axis, arrays, version["model"], current)
+    check = ModelCheck.from_dict(figures)
     try:
-        svc.engine.set_model(axis, model_from_json(version["model"]))
+        engine.set_model(axis, model, check=check)
+    except ModelRefused as exc:
+        raise Refused(str(exc), model_check=figures_deg(exc.figures)) from None
     except ConfigError as exc:
-        raise Refused(str(exc)) from None
-    return await _gains_out(svc, who, axis)
+        raise Refused(str(exc), model_check=figures_deg(figures)) from None
+    return await _gains_out(svc, who, axis, model_check=figures_deg(figures))
 
 
-async def _gains_out(svc: Service, who: Principal, axis: str) -> GainsOut:
+def figures_deg(figures: Mapping[str, object]) -> dict[str, object]:
+    """A model check's figures for the client: angles in degrees (``*_rad`` → ``*_deg``)."""
+    out: dict[str, object] = {}
+    for key, value in figures.items():
+        if key.endswith("_rad") and isinstance(value, float):
+            out[key[: -len("_rad")] + "_deg"] = math.degrees(value) if math.isfinite(value) else None
+        else:
+            out[key] = value
+    return out
+
+
+async def _gains_out(
+    svc: Service, who: Principal, axis: str, model_check: dict[str, object] | None = None
+) -> GainsOut:
     """The axis's current gains, their margins and the configured floor."""
     gains = svc.engine.gains(axis)
     return GainsOut(
@@ -159,4 +187,5 @@ async def _gains_out(svc: Service, who: Principal, axis: str) -> GainsOut:
         gains=heavy.result_json(gains) | {"type": type(gains).__name__},
         margins=await margins_of(svc, who, axis, gains),
         min_phase_margin_deg=svc.settings.min_phase_margin_deg,
+        model_check=model_check,
     )

@@ -1,6 +1,8 @@
 """Manual pointing: PUT /pointing (hold a direction), DELETE /pointing (release), jog press/release.
 
-Pointing and jogging take manual control (one holder at a time; 409 names the holder). A jog
+Pointing and jogging take manual control (one holder at a time; 409 names the holder); while a
+drive fault is latched they are refused with 503 (DriverFault) until an engineer clears it
+(``POST /faults/clear``); releasing and stopping a jog stay allowed. A jog
 is a rate command that the engine stops by itself after ``jog_timeout_s`` unless pressed again:
 the console re-sends the press every 150 ms while the button is down and sends the release on
 mouse-up, so a lost connection or a closed tab stops the axis within the timeout.
@@ -35,6 +37,7 @@ def point_deg(svc: Service, pan_deg: float, tilt_deg: float) -> None:
 
 @router.put("/pointing", response_model=PointingOut, summary="Point the camera (manual override)")
 async def put_pointing(body: PointingIn, svc: Svc, who: Operator) -> PointingOut:
+    svc.engine.require_no_fault()
     svc.lock.acquire(who)
     point_deg(svc, body.pan_deg, body.tilt_deg)
     return PointingOut(
@@ -58,6 +61,8 @@ async def delete_pointing(svc: Svc, who: Operator) -> dict[str, object]:
 )
 async def put_jog(axis: str, body: JogIn, svc: Svc, who: Operator) -> JogOut:
     check_axis(axis)
+    if body.rate_deg_s != 0.0:
+        svc.engine.require_no_fault()
     svc.lock.acquire(who)
     timeout_s = svc.settings.jog_timeout_s
     svc.engine.jog(axis, math.radians(body.rate_deg_s), timeout_s=timeout_s)

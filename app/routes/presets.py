@@ -48,6 +48,7 @@ async def recall_preset(name: PresetName, svc: Svc, who: Operator) -> PointingOu
     p = svc.db.get_preset(name)
     if p is None:
         raise NotFound(f"no preset {name!r}")
+    svc.engine.require_no_fault()  # 503 while a drive fault is latched
     svc.lock.acquire(who)
     point_deg(svc, p["pan_deg"], p["tilt_deg"])
     return PointingOut(

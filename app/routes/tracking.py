@@ -1,4 +1,7 @@
-"""PUT /tracking: follow the talker (audio target source) or hold the manual target."""
+"""PUT /tracking: follow the talker (audio target source) or hold the manual target.
+
+Turning tracking on is refused with 503 while a drive fault is latched; turning it off always works.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ router = APIRouter(tags=["tracking"])
 @router.put("/tracking", response_model=TrackingOut, summary="Turn talker tracking on or off")
 async def put_tracking(body: TrackingIn, svc: Svc, who: Operator) -> TrackingOut:
     if body.enabled:
+        svc.engine.require_no_fault()
         # Re-enabling tracking ends the manual override: only the holder of manual control (or
         # anyone when nobody holds it) may do that; 409 otherwise.
         svc.lock.acquire(who)

@@ -188,6 +188,10 @@ async function designOnModel() {
   $("wb-error").textContent = "";
   try {
     const g = await put(`/axes/${v.model.axis}/model`, { version_id: v.id });
-    toast(`${v.model.axis} controller redesigned on ${v.label}: phase margin ${fmt(g.margins.phase_margin_deg)}°`);
+    const check = g.model_check;
+    const checked = check && check.judged
+      ? `; predicts the last ${fmt(check.window_s)} s with ${fmt(check.candidate_rms_deg, 3)}° (limit ${fmt(check.limit_deg, 3)}°)`
+      : check ? ` (not checked against recent motion: ${check.note})` : "";
+    toast(`${v.model.axis} controller redesigned on ${v.label}: phase margin ${fmt(g.margins.phase_margin_deg)}°${checked}`);
   } catch (e) { $("wb-error").textContent = e.message; }
 }

@@ -8,7 +8,7 @@ import pytest
 from tracker.control.gains import ObserverPdGains
 from tracker.drivers.sim import SimDriver
 from tracker.engine import Engine, TelemetrySnapshot
-from tracker.errors import ConfigError
+from tracker.errors import ConfigError, DriverFault
 from tracker.targets import FunctionTarget, Target
 
 
@@ -241,3 +241,49 @@ def test_redesign_on_a_fitted_model_changes_the_gains_and_keeps_margins() -> Non
     assert e.gains("tilt").kp_v_per_rad == pytest.approx(2.05 * before.kp_v_per_rad, rel=0.05)  # type: ignore[union-attr]
     faster = e.set_model("tilt", heavier, crossover_hz=16.0)
     assert faster.report.crossover_hz == pytest.approx(16.0, rel=0.05)
+
+
+def test_a_standing_fault_refuses_pointing_jogging_and_tracking_until_cleared() -> None:
+    """Issue #11 item 3: after a latched fault the engine refuses what would move the axes
+    (DriverFault, the service's 503), ends the manual override, and allows stopping."""
+    drv = SimDriver()
+    e = Engine(drv)
+    drv.enable()
+    e.point(math.radians(40.0), 0.0)
+    run(e, 0.2)
+    drv.latch_fault("pan: over-travel at -95.3° (injected)")
+    run(e, 0.05)
+    with pytest.raises(DriverFault, match="over-travel.*refused until the fault is cleared"):
+        e.point(0.0, 0.0)
+    with pytest.raises(DriverFault, match="over-travel"):
+        e.jog("pan", 0.2)
+    with pytest.raises(DriverFault, match="over-travel"):
+        e.set_tracking(True)
+    e.jog("pan", 0.0)  # stopping is always allowed
+    e.set_tracking(False)
+    assert e.status().mode == "fault"
+    here = drv.load_angle_rad("pan")
+    drv.clear_faults()
+    drv.enable()
+    run(e, 0.3)
+    # The override ended with the fault (the stop held the axes where they were): no move to 40°.
+    assert drv.load_angle_rad("pan") == pytest.approx(here, abs=math.radians(0.5))
+    e.point(0.0, 0.0)
+    run(e, 1.0)
+    assert drv.load_angle_rad("pan") == pytest.approx(0.0, abs=math.radians(0.1))
+
+
+def test_after_an_over_travel_the_axis_rests_on_its_end_stop_and_comes_back_once_cleared() -> None:
+    drv = SimDriver()
+    e = Engine(drv)
+    drv.enable()
+    drv.set_angle("pan", math.radians(-97.0))  # past the end stop (−95°)
+    run(e, 0.05)
+    assert drv.faults() and "over-travel at -97.0°" in drv.faults()[0]
+    # Against the stop (the guard's last push, still in the amplifier, moved it a hair inward).
+    assert math.radians(-95.0) - 1e-9 <= drv.load_angle_rad("pan") < math.radians(-94.9)
+    drv.clear_faults()
+    drv.enable()
+    run(e, 1.5)
+    assert not drv.faults()
+    assert math.radians(-90.0) < drv.load_angle_rad("pan") < math.radians(-89.0)

@@ -1,5 +1,6 @@
-"""The engine under random operator input: whatever is pointed, jogged, tuned or tracked,
-the camera stays inside the soft limits and the engine only ever refuses with ConfigError."""
+"""The engine under random operator input: whatever is pointed, jogged, tuned, tracked or offered
+as the controller's model, the camera stays inside the soft limits and the engine only ever
+refuses with ConfigError."""
 
 import asyncio
 import math
@@ -11,12 +12,17 @@ from tracker.control.gains import ObserverPdGains
 from tracker.drivers.sim import SimDriver
 from tracker.engine import Engine
 from tracker.errors import ConfigError
+from tracker.plant.model import AxisModel
 from tracker.targets import FunctionTarget
 
 LIMIT_RAD = {"pan": math.radians(90.0), "tilt": math.radians(45.0)}
 angle = st.floats(-4.0, 4.0)
 wild = st.one_of(angle, st.sampled_from([1e6, -1e6]))
+# A model fitted to the wrong log: inertia and Coulomb friction each ×0.2–×5 (refused with
+# ModelRefused, a ConfigError, once the axis has moved; the guard does not rely on it either way).
+factor = st.floats(0.2, 5.0)
 operations = st.one_of(
+    st.tuples(st.just("model"), st.sampled_from(["pan", "tilt"]), st.tuples(factor, factor)),
     st.tuples(st.just("point"), angle, angle),
     st.tuples(st.just("jog"), st.sampled_from(["pan", "tilt"]), st.floats(-4.0, 4.0)),
     st.tuples(st.just("release"), st.none(), st.none()),
@@ -54,6 +60,19 @@ def test_random_operator_input_never_passes_a_soft_limit(ops: list[tuple[str, ob
                     e.jog(str(a), float(b), timeout_s=0.3)  # type: ignore[arg-type]
                 elif op == "release":
                     e.release()
+                elif op == "model":
+                    assert isinstance(b, tuple)
+                    fj, fc = float(b[0]), float(b[1])
+                    base = AxisModel.for_axis(str(a))
+                    e.set_model(
+                        str(a),
+                        base.with_params(
+                            {
+                                "inertia.J": base.params["inertia.J"] * fj,
+                                "coulomb.torque": base.params["coulomb.torque"] * fc,
+                            }
+                        ),
+                    )
                 elif op == "track":
                     e.set_target_source(FunctionTarget(lambda t, a=a, b=b: (a, b)))
                     e.set_tracking(True)

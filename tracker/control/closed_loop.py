@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from tracker.control.envelope import BrakingEnvelope
 from tracker.control.gains import ControllerGains
 from tracker.control.limits import SoftLimits
 from tracker.control.loop import S_INIT, S_OM, S_REF, controller_step, new_state, pack_controller
@@ -121,17 +122,19 @@ def simulate_closed_loop(
     disturbance_nm: FloatArray | None = None,
     velocity_source: float = 0.0,
     hard_limit_rad: float = math.inf,
+    envelope: BrakingEnvelope | None = None,
 ) -> ClosedLoopResult:
     """Close the loop of ``gains`` (designed on ``design_model``) around the twin ``plant``.
 
     ``targets_rad`` has shape (n,), one target per sample. ``plant`` may hold effects the
-    design model lacks (that is the point of a twin).
+    design model lacks (that is the point of a twin). ``envelope``: the rig's rated braking for
+    the soft-limit guard (None: the design model's, see :func:`tracker.control.loop.pack_controller`).
     """
     tgt = np.ascontiguousarray(targets_rad, dtype=float)
     if tgt.ndim != 1 or tgt.size == 0:
         raise DataError(f"targets must be a non-empty 1-D array, got shape {tgt.shape}")
     lim = limits if limits is not None else UNLIMITED
-    cp = pack_controller(design_model, gains, dt_s, lim, shaping, velocity_source)
+    cp = pack_controller(design_model, gains, dt_s, lim, shaping, velocity_source, envelope)
     pp = pack_params(plant, dt_s, quantize=True)
     x = initial_state(theta0_rad)
     cs = new_state()

@@ -6,7 +6,9 @@ Two lines of defence:
    (the shaper in :mod:`tracker.control.trajectory` also brakes in time for them);
 2. the last line runs after any controller. :func:`guard_command` (rigid model) predicts
    where the axis would stop if it braked now, from the *observed* velocity, the command
-   latency and the deceleration the motor can surely deliver, and overrides the command with a
+   latency and the deceleration the motor can surely deliver (the axis's rated braking
+   envelope and its own measured full-command acceleration, :mod:`tracker.control.envelope`;
+   never more than the controller's model says), and overrides the command with a
    full brake when that stop point reaches the guard line (``guard_margin_rad`` inside the
    limit); at rest near the line it forbids outward commands, and past the line it pushes back
    at full command. For a model with a belt, :mod:`tracker.control.belt_guard` replaces it.
@@ -14,17 +16,19 @@ Two lines of defence:
 Which last line runs depends on what the design model knows.
 
 **Rigid model** (:func:`guard_command`). Assumes that unmodelled torques (gravity, offset,
-ripple...) and a lower amplifier clip leave at least ``BRAKE_FRACTION`` of the nominal braking
-torque, that the command delay is within ``GUARD_LATENCY_S`` (less one sample), and that the
-transmission is stiff: the encoder is on the motor, so backlash within the margin (tested to
-0.23°) is covered. A belt the model does not know is covered only through the site's
+ripple...) and a lower amplifier clip leave at least ``BRAKE_FRACTION`` of the rated braking
+torque (or of what the axis showed at its last full command), that the command delay is within
+``GUARD_LATENCY_S`` (less one sample), and that the transmission is stiff: the encoder is on
+the motor, so backlash within the margin (tested to 0.23°) is covered. A belt the model does
+not know is covered only through the site's
 ``guard_margin_rad`` (``EngineConfig.guard_margin_rad``): :func:`unknown_belt_margin_rad` gives
 the margin for a belt known to be at least f Hz stiff; measured (bench/bench_limits_belt.py)
 it holds for belts with damping ratio ≥ 0.1 (0 of 3000 runs past), but *not* for lightly
 damped ones: the guard's full-command brake, delayed, pumps the resonance and even the encoder
 passes (ζ 0.02–0.05: 14 of 1200 runs past, up to 85°). Soft belts (≲ 30 Hz) need margins of tens of degrees.
 
-**Model with the belt** (``compliance``, e.g. fitted by the workbench; the belt guard in
+**Model with the belt** (``compliance``, e.g. fitted by the workbench and confirmed by the
+axis's recent motion, :mod:`tracker.model_check`; the belt guard in
 :mod:`tracker.control.belt_guard`): a two-mass observer, a model-predicted trigger and a
 latching backup keep the *load* inside lines moved in by the guard margin plus twice the belt's
 twist under ``BELT_LOAD_TORQUE_NM`` and the model's gravity (:func:`belt_guard_lines`).

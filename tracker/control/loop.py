@@ -14,8 +14,9 @@ and returns the command uₖ (V), held over [tₖ, tₖ₊₁):
    *observed* velocity ω̂ otherwise; the integrator stops while the command is saturated and its
    share is capped (anti-windup);
    law "seed_lead": u = C(z)(r − y), the seed's first-order lead on the raw encoder error;
-4. the soft-limit guard (:mod:`tracker.control.limits`) on its own fixed observer, then the
-   ±10 V clip;
+4. the soft-limit guard (:mod:`tracker.control.limits`) on its own fixed observer of the rated
+   axis, counting on the braking envelope rather than the model
+   (:mod:`tracker.control.envelope`), then the ±10 V clip;
 5. the observer predicts the next sample with the applied command.
 
 Parameters travel as one packed float vector (``CP``), state as another (``CS``), so the whole
@@ -40,13 +41,20 @@ from tracker.control.belt_guard import (
     reset_belt_guard,
 )
 from tracker.control.belt_guard_design import design_belt_guard, pack_belt_guard
+from tracker.control.envelope import (
+    MEASURE_WINDOW_S,
+    N_ES,
+    BrakingEnvelope,
+    counted_decel,
+    guard_figures,
+    measure_full_command,
+)
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
 from tracker.control.limits import (
     GUARD_LATENCY_S,
     GUARD_OBSERVER_HZ,
     SoftLimits,
     belt_guard_lines,
-    brake_decel_rad_s2,
     clamp_target,
     guard_command,
 )
@@ -83,7 +91,10 @@ C_ADAPT = 60  # Coulomb adaptation rate (1/s)
 C_OFF, C_GT, C_GPH = 61, 62, 63  # the model's static torques, in V: offset, gravity amplitude, phase
 C_BELT = 64  # 1: the model has a belt; the two-mass guard (belt_guard.py) replaces the rigid one
 C_BGP = 65  # the belt guard's parameters, N_GP of them
-N_CP = C_BGP + N_GP
+# Full-command measurement (envelope.measure_full_command): samples to let it act, window samples.
+C_MSET = C_BGP + N_GP
+C_MWIN = C_MSET + 1
+N_CP = C_MWIN + 1
 # Adapt only while reference and axis both move faster than this many friction bands.
 ADAPT_BANDS = 5.0
 # Adapted Coulomb stays within [0, ADAPT_MAX_FACTOR × the model's].
@@ -106,7 +117,8 @@ S_X, S_INT, S_PREVY, S_LE, S_LU, S_REF, S_PREVT, S_INIT, S_TH, S_OM, S_GUARD, S_
 S_GX = 16
 S_FCP, S_FCN = 19, 20  # adapted Coulomb feedforward (V), positive and negative direction
 S_BGS = 21  # the belt guard's state, N_GS of them
-N_CS = S_BGS + N_GS
+S_ES = S_BGS + N_GS  # the braking measurement's state, N_ES of them
+N_CS = S_ES + N_ES
 
 VELOCITY_OBSERVER, VELOCITY_DIFFERENCE = 0.0, 1.0
 
@@ -118,10 +130,13 @@ def pack_controller(
     limits: SoftLimits,
     shaping: TrajectoryLimits | None,
     velocity_source: float = VELOCITY_OBSERVER,
+    envelope: BrakingEnvelope | None = None,
 ) -> FloatArray:
     """Pack ``gains`` designed on ``model`` into the compiled controller's vector, shape (N_CP,).
 
-    ``shaping=None`` passes targets unshaped (the seed's structure).
+    ``shaping=None`` passes targets unshaped (the seed's structure). ``envelope`` is the axis's
+    rated braking (:mod:`tracker.control.envelope`), which the rigid guard trusts over the
+    model; None trusts the model (design studies on a known twin; the engine always passes one).
     """
     p = model.params
     k = model.gain_nm_per_v
@@ -155,7 +170,8 @@ def pack_controller(
     cp[C_A : C_A + 9] = obs.a.reshape(-1)
     cp[C_B : C_B + 3] = obs.b
     cp[C_L : C_L + 3] = obs.l
-    guard_obs = design_observer(model, GUARD_OBSERVER_HZ, dt_s)
+    env = envelope if envelope is not None else BrakingEnvelope.of_model(model)
+    guard_obs = design_observer(env.observer_model(), GUARD_OBSERVER_HZ, dt_s)
     cp[C_GA : C_GA + 9] = guard_obs.a.reshape(-1)
     cp[C_GB : C_GB + 3] = guard_obs.b
     cp[C_GL : C_GL + 3] = guard_obs.l
@@ -165,10 +181,12 @@ def pack_controller(
         cp[C_VMAX], cp[C_AMAX] = 1e9, 1e12
     cp[C_LO], cp[C_HI] = limits.lower_rad, limits.upper_rad
     cp[C_TMARG], cp[C_GMARG] = limits.target_margin_rad, limits.guard_margin_rad
-    cp[C_DECEL] = brake_decel_rad_s2(k, p["inertia.J"], AMPLIFIER_LIMIT_V)
+    figures = guard_figures(env, model, AMPLIFIER_LIMIT_V)
+    cp[C_DECEL], cp[C_KJ] = figures.brake_decel_rad_s2, figures.push_accel_per_v
     cp[C_LAT] = GUARD_LATENCY_S + p.get("delay.seconds", 0.0)
     cp[C_UMAX] = AMPLIFIER_LIMIT_V
-    cp[C_KJ] = k / p["inertia.J"]
+    cp[C_MSET] = math.ceil(cp[C_LAT] / dt_s) + 1.0
+    cp[C_MWIN] = max(1.0, round(MEASURE_WINDOW_S / dt_s))
     cp[C_INVK] = 1.0 / k
     if model.has("compliance"):
         # The belt guard keeps the load inside lines the twist margin moves in; targets and the
@@ -308,7 +326,7 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
             cp[C_LO],
             cp[C_HI],
             cp[C_GMARG],
-            cp[C_DECEL],
+            counted_decel(cp[C_DECEL], cs[S_ES : S_ES + N_ES]),
             cp[C_LAT],
             umax,
             cp[C_KJ],
@@ -316,6 +334,8 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
     cs[S_GUARD] = 1.0 if ug != u else 0.0
     cs[S_PREVY] = y_rad
     u = _clip(ug, umax)
+    if cp[C_BELT] == 0.0:  # time full commands: the rig's own acceleration caps the guard's
+        measure_full_command(cs[S_ES : S_ES + N_ES], y_rad, u, umax, cp[C_MSET], cp[C_MWIN], dt)
     # 5. observer predictions with the applied command.
     _predict(cp[C_A : C_A + 9], cp[C_B : C_B + 3], cs[S_X : S_X + 3], th, om, dist, u)
     _predict(cp[C_GA : C_GA + 9], cp[C_GB : C_GB + 3], cs[S_GX : S_GX + 3], g_th, g_om, g_d, u)

@@ -1,7 +1,7 @@
 """Drop numba's on-disk cache of the compiled loop when a function it inlines has changed.
 
 numba keys each cached function on its own source file only. ``loop.controller_step`` inlines
-the guard (limits.py) and the shaper (trajectory.py); ``closed_loop.run_chunk`` inlines the
+the guard (limits.py, envelope.py) and the shaper (trajectory.py); ``closed_loop.run_chunk`` inlines the
 controller and the plant (plant/simulate.py). Editing any of those would leave the callers'
 caches silently stale, so on import we hash the sources and purge the callers' cache files
 when the hash moved.
@@ -16,6 +16,7 @@ _HERE = Path(__file__).resolve().parent
 _SOURCES = (
     _HERE / "loop.py",
     _HERE / "limits.py",
+    _HERE / "envelope.py",
     _HERE / "belt_guard.py",
     _HERE / "trajectory.py",
     _HERE / "observer.py",

@@ -31,7 +31,8 @@ from tracker.plant.simulate import advance, encoder_rad, initial_state, pack_par
 
 FloatArray = NDArray[np.float64]
 DT_S = 1e-3
-# Mechanical end stops: this far past the soft limit the rig latches an over-travel fault.
+# Mechanical end stops: this far past the soft limit the rig latches an over-travel fault (and
+# the axis rests against the stop).
 HARD_STOP_MARGIN_RAD = math.radians(5.0)
 
 
@@ -199,14 +200,19 @@ class SimDriver:
         return rec
 
     def _check_travel(self, axis: str) -> None:
-        th = self._x[axis][2]
-        if abs(th) > self._hard[axis]:
+        x = self._x[axis]
+        th = x[2]
+        hard = self._hard[axis]
+        if abs(th) > hard:
             self.latch_fault(
-                f"{axis}: over-travel at {math.degrees(th):.1f}° "
-                f"(end stop ±{math.degrees(self._hard[axis]):.1f}°)"
+                f"{axis}: over-travel at {math.degrees(th):.1f}° (end stop ±{math.degrees(hard):.1f}°)"
             )
-            self._x[axis][1] = 0.0
-            self._x[axis][3] = 0.0
+            # The end stop is a wall: the axis rests against it (motor and load together), so
+            # that once the fault is cleared the guard can drive it back inside.
+            x[0] += math.copysign(hard, th) - th
+            x[2] = math.copysign(hard, th)
+            x[1] = 0.0
+            x[3] = 0.0
 
     def _check_axis(self, axis: str) -> None:
         if axis not in self._models:

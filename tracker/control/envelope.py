@@ -1,0 +1,189 @@
+"""The braking envelope the soft-limit guard counts on, whatever the controller's model says.
+
+The rigid guard (:func:`tracker.control.limits.guard_command`) needs two numbers: the
+deceleration a full-command brake surely gives (a *lower* bound, a_brake) and the acceleration
+per volt the current command may add while the brake is on its way (an *upper* bound). Taking
+them from the controller's design model made the last line only as good as that model: a model
+fitted to the log of a lighter axis (inertia ×0.2) promised 2.5× the braking the rig has, and
+the load went 43° past the limit (docs/control.md, "Soft limits"). Three sources now, and the
+guard takes the most pessimistic of them:
+
+1. **the rating** of the axis hardware (:meth:`BrakingEnvelope.for_axis`: the seed's gear,
+   torque constant, amplifier and inertia, Appendix A; a site whose payload is heavier says so
+   with ``EngineConfig.envelopes``): ``brake_fraction``·K·u_max/J, the same half of the full
+   torque the rigid guard always assumed (hidden torques and a lower clip leave at least that);
+2. **the design model**, which can only make the guard more cautious (a heavier model lowers
+   a_brake; a lighter one cannot raise it above the rating);
+3. **the axis's own motion at full command**, measured on line (:func:`measure_full_command`):
+   whenever the applied command has stayed at ±u_max for the command latency plus two windows
+   of ``MEASURE_WINDOW_S`` while the axis moved, the second difference of the encoder over
+   those windows is the acceleration the rig really gave; ``MEASURED_FRACTION`` of the latest
+   one caps a_brake. A full *acceleration* counts as well as a brake: friction helps a brake
+   and hinders a start, so an axis brakes at least as hard as it starts (up to torques that
+   depend on the direction or the angle, which the fraction pays for: gravity 0.12 N·m on the
+   seed's pan is 16 % of its full torque each way). A rig heavier than its rating is thus
+   found while it first runs up to speed at full command, before the brake that needs it
+   (measured: a brake-only version found it during that brake, too late).
+
+The push during the latency uses the largest K/J of the rating and the model. The guard's own
+observer is designed on the rating (:meth:`BrakingEnvelope.observer_model`), so no model can
+blind it either.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from tracker.control.limits import BRAKE_FRACTION
+from tracker.errors import ConfigError
+from tracker.plant.model import AxisModel
+from tracker.plant.params import get_preset
+from tracker.units import AMPLIFIER_LIMIT_V
+
+FloatArray = NDArray[np.float64]
+
+# The measured acceleration is counted at this fraction: torques that depend on the direction
+# or vary along the travel (gravity, offset, ripple) may brake less than the rig started or
+# braked where it was measured.
+MEASURED_FRACTION = 0.6
+# Length of each of the two windows whose second difference measures the deceleration: at
+# 100 rad/s² it spans 54 encoder counts (2 % resolution).
+MEASURE_WINDOW_S = 0.010
+# A measurement counts only if the axis moved this fast over the last window (rad/s): an axis
+# held by stiction or stopping inside the window would understate what the torque does.
+MEASURE_MIN_SPEED_RAD_S = 0.5
+# The smallest deceleration a measurement may set, as a fraction of the rating (a guard that
+# believes in no braking at all would refuse every outward move; below this the axis is broken).
+MEASURED_FLOOR_FRACTION = 0.02
+
+# Measurement state (offsets in the controller's state slice): the sign of the full command
+# being timed (0: none), samples since it began, encoder at the window marks, the latest
+# measured acceleration along the command (0: none yet).
+E_DIR, E_N, E_Y0, E_Y1, E_DECEL = 0, 1, 2, 3, 4
+N_ES = 5
+
+
+@dataclass(frozen=True, slots=True)
+class BrakingEnvelope:
+    """The rated capability of one axis: gain K (N·m/V), the largest inertia J (kg·m²) it
+    carries, its viscous friction (N·m·s/rad, for the guard's observer) and the share of the
+    full torque counted on for braking."""
+
+    gain_nm_per_v: float
+    inertia_kg_m2: float
+    viscous_nm_s_per_rad: float = 0.0
+    brake_fraction: float = BRAKE_FRACTION
+
+    def __post_init__(self) -> None:
+        for name in ("gain_nm_per_v", "inertia_kg_m2"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"BrakingEnvelope.{name} must be a positive number, got {value!r}")
+        if not (math.isfinite(self.viscous_nm_s_per_rad) and self.viscous_nm_s_per_rad >= 0.0):
+            raise ConfigError(
+                f"BrakingEnvelope.viscous_nm_s_per_rad must be >= 0, got {self.viscous_nm_s_per_rad!r}"
+            )
+        if not (0.0 < self.brake_fraction <= 1.0):
+            raise ConfigError(
+                f"BrakingEnvelope.brake_fraction must be in (0, 1], got {self.brake_fraction!r}"
+            )
+
+    @classmethod
+    def for_axis(cls, axis: str, inertia_factor: float = 1.0) -> BrakingEnvelope:
+        """The seed hardware's rating of ``axis`` (Appendix A); ``inertia_factor`` for a site
+        whose payload is heavier than the seed's (the inertia it may carry, ≥ the seed's)."""
+        preset = get_preset(axis)
+        return cls(preset.gain_nm_per_v, preset.inertia_kg_m2 * inertia_factor, preset.viscous_nm_s_per_rad)
+
+    @classmethod
+    def of_model(cls, model: AxisModel) -> BrakingEnvelope:
+        """The envelope a model implies (trusting it: for design studies on a known twin)."""
+        p = model.params
+        return cls(model.gain_nm_per_v, p["inertia.J"], p["viscous.b"])
+
+    def brake_decel_rad_s2(self, u_max_v: float = AMPLIFIER_LIMIT_V) -> float:
+        """The deceleration (rad/s²) a full brake surely gives: brake_fraction·K·u_max/J."""
+        return self.brake_fraction * self.gain_nm_per_v * u_max_v / self.inertia_kg_m2
+
+    def push_accel_per_v(self) -> float:
+        """Acceleration per volt (rad/s² per V) of the rated axis, K/J."""
+        return self.gain_nm_per_v / self.inertia_kg_m2
+
+    def observer_model(self) -> AxisModel:
+        """A rigid model of the rated axis, for the guard's own observer."""
+        return AxisModel.create(
+            self.gain_nm_per_v,
+            {"inertia.J": self.inertia_kg_m2, "viscous.b": self.viscous_nm_s_per_rad, "coulomb.torque": 0.0},
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class GuardFigures:
+    """What the rigid guard is packed with: the braking it counts on (rad/s²) and the push per
+    volt it allows for during the latency (rad/s² per V)."""
+
+    brake_decel_rad_s2: float
+    push_accel_per_v: float
+
+
+def guard_figures(
+    envelope: BrakingEnvelope, model: AxisModel, u_max_v: float = AMPLIFIER_LIMIT_V
+) -> GuardFigures:
+    """The rating's and the model's figures, the most pessimistic of each (the measured
+    acceleration then caps the braking at run time, :func:`counted_decel`)."""
+    from_model = BrakingEnvelope.of_model(model)
+    return GuardFigures(
+        min(envelope.brake_decel_rad_s2(u_max_v), from_model.brake_decel_rad_s2(u_max_v)),
+        max(envelope.push_accel_per_v(), from_model.push_accel_per_v()),
+    )
+
+
+@njit(cache=True, inline="always")
+def measure_full_command(
+    es: FloatArray, y_rad: float, u_v: float, u_max_v: float, settle: float, window: float, dt: float
+) -> None:
+    """Time full commands and measure the acceleration they give; ``es`` (N_ES,) is updated.
+
+    ``u_v`` is the command applied this sample. From ``settle`` samples after it reached ±u_max
+    (the command latency), the encoder ``y_rad`` is marked every ``window`` samples; after two
+    windows the acceleration along the command, sign(u)·(y₂ − 2y₁ + y₀)/(window·dt)², is stored
+    if the axis still moved faster than MEASURE_MIN_SPEED_RAD_S over the last window, and the
+    next pair of windows starts. Any smaller command ends the timing.
+    """
+    direction = 0.0
+    if u_v >= u_max_v:
+        direction = 1.0
+    elif u_v <= -u_max_v:
+        direction = -1.0
+    if direction == 0.0 or direction != es[0]:  # es[E_DIR]: a new full command, or none
+        es[0] = direction
+        es[1] = 0.0
+        return
+    n = es[1] + 1.0  # es[E_N]
+    es[1] = n
+    if n == settle:
+        es[2] = y_rad  # es[E_Y0]
+    elif n == settle + window:
+        es[3] = y_rad  # es[E_Y1]
+    elif n == settle + 2.0 * window:
+        span = window * dt
+        if abs(y_rad - es[3]) > MEASURE_MIN_SPEED_RAD_S * span:
+            es[4] = direction * (y_rad - 2.0 * es[3] + es[2]) / (span * span)  # es[E_DECEL]
+        es[2] = y_rad  # the next pair of windows starts here
+        es[1] = settle
+
+
+@njit(cache=True, inline="always")
+def counted_decel(rated_decel: float, es: FloatArray) -> float:
+    """The deceleration (rad/s²) the guard counts on now: the packed (rated/model) bound, capped
+    by MEASURED_FRACTION of the latest measurement, never below MEASURED_FLOOR_FRACTION of it."""
+    measured = float(es[4])
+    if measured == 0.0:
+        return rated_decel
+    decel = min(rated_decel, MEASURED_FRACTION * measured)
+    return max(decel, MEASURED_FLOOR_FRACTION * rated_decel)
