@@ -63,7 +63,6 @@ def test_ripple_at_a_non_integer_cycle_count_is_found() -> None:
     assert abs(d.candidate("ripple").params["ripple.cycles_per_rev"] - n_true) < 0.5
 
 
-@pytest.mark.xfail(strict=True, reason="known miss (issue #9 note): this stiction log is read as backlash")
 def test_hidden_stiction_is_named() -> None:
     _, d = _case("stiction-001")
     assert d.verdict == "stiction"
