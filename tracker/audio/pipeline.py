@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -14,6 +14,8 @@ from tracker.audio.localizers.base import DirectionEstimate, direction_grid
 from tracker.audio.localizers.spectra import SrpGrid
 from tracker.audio.localizers.srp_phat import SrpPhat
 from tracker.audio.map_tracking import MapTracker, MapTrackerSettings
+from tracker.audio.trackers import TRACKERS, TrackerName
+from tracker.audio.trackers import choose_tracker as choose_tracker  # re-exported
 from tracker.audio.tracking import TalkerTracker, TrackerSettings, TrackPoint
 from tracker.audio.vad import SpeechDetector, VadSettings
 from tracker.errors import ConfigError, DataError
@@ -98,24 +100,7 @@ class LocateResult:
         }
 
 
-TrackerName = Literal["kalman", "map"]
-TRACKERS: tuple[TrackerName, ...] = ("kalman", "map")
 MAP_STEP_RAD = float(np.deg2rad(1.0))
-
-
-def choose_tracker(method: str, array: MicArray, azimuth_range_rad: tuple[float, float] | None
-                   ) -> TrackerName:
-    """The better tracker the set-up allows: ``"map"`` (81 % on target against 77 % on the
-    meeting's seeds 0-13) for ``srp_phat`` when talkers are searched in a limited base-frame
-    azimuth range ``azimuth_range_rad`` (the localizer's range for a room-mounted array,
-    :attr:`Pipeline.base_azimuth_range_rad` for a head-mounted one); ``"kalman"`` otherwise.
-
-    A full-circle search keeps the Kalman tracker: the map tracker's grid is a line, not a
-    circle (a talker crossing ±180° would be lost at its edges).
-    """
-    if method == "srp_phat" and azimuth_range_rad is not None:
-        return "map"
-    return "kalman"
 
 
 @dataclass

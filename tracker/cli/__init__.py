@@ -19,46 +19,54 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from tracker.errors import TrackerError  # noqa: E402
 
-# Command modules, in the order they appear in --help. A module that is missing (work in
-# progress) is skipped so the rest of the command line keeps working.
-COMMAND_MODULES = (
-    "tracker.cli.simulate",
-    "tracker.cli.serve",
-    "tracker.cli.model",
-    "tracker.cli.friction",
-    "tracker.cli.audio",
-    "tracker.cli.camera",
-    "tracker.cli.motor",
-)
-# The first word of the command line -> the one module that registers it. Only that module is
-# imported (the others pull in scipy, python-control, pyroomacoustics: seconds of start-up).
-COMMAND_OWNERS = {
-    "simulate": "tracker.cli.simulate",
-    "serve": "tracker.cli.serve",
-    "model": "tracker.cli.model",
-    "friction-id": "tracker.cli.friction",
-    "audio": "tracker.cli.audio",
-    "camera-emulator": "tracker.cli.camera",
-    "motor-emulator": "tracker.cli.motor",
+# The commands, in the order they appear in --help: the module that registers each and its
+# one-line help. Only the module of the command given is imported (the others pull in scipy,
+# python-control, numba, pyroomacoustics: seconds of start-up); ``tracker --help`` imports none.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("tracker.cli.simulate",
+                 "run the pointing test (steps, ramps, 1 Hz sine) on the digital twin, or a meeting"),
+    "serve": ("tracker.cli.serve", "run the service (web console on the simulated rig)"),
+    "model": ("tracker.cli.model", "model workbench: compare, fit, diagnose"),
+    "friction-id": ("tracker.cli.friction",
+                    "identify viscous and Coulomb friction per direction (seed §3.1)"),
+    "audio": ("tracker.cli.audio", "locate talkers in multichannel audio"),
+    "camera-emulator": ("tracker.cli.camera", "emulate a PTZ camera (VISCA over IP on UDP, or raw "
+                        "VISCA on TCP) on 127.0.0.1"),
+    "motor-emulator": ("tracker.cli.motor",
+                       "emulate the DC rig's serial motor controller on a pseudo-terminal"),
 }
+COMMAND_MODULES = tuple(module for module, _ in COMMANDS.values())
+COMMAND_OWNERS = {name: module for name, (module, _) in COMMANDS.items()}
+
+
+def command_help(command: str) -> str:
+    """The one-line help of ``command`` (shown by ``tracker --help``)."""
+    return COMMANDS[command][1]
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """Return the ``tracker`` argument parser; with ``command`` only that command is registered."""
+    """Return the ``tracker`` argument parser.
+
+    With a known ``command`` only its module is imported and registers its full options; with
+    none (``tracker --help``, a typo) every command is listed by name and help only.
+    """
     parser = argparse.ArgumentParser(
         prog="tracker",
         description="3DAT: audio-steered pan/tilt camera engine, digital twin and model workbench.",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    owner = COMMAND_OWNERS.get(command or "")
-    for module_name in (owner,) if owner else COMMAND_MODULES:
+    if command in COMMANDS:
+        module_name = COMMAND_OWNERS[command]
         try:
             module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            if exc.name == module_name:
-                continue
-            raise
-        module.register(subparsers)
+        except ModuleNotFoundError as exc:  # work in progress: list the command, run nothing
+            if exc.name != module_name:
+                raise
+        else:
+            module.register(subparsers)
+            return parser
+    for name, (_, text) in COMMANDS.items():
+        subparsers.add_parser(name, help=text)
     return parser
 
 

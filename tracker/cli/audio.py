@@ -5,20 +5,24 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from tracker.audio.array import load_array
-from tracker.audio.head import check_coverage, locate_head_mounted, read_encoder_log
 from tracker.audio.localizers import DEFAULT_LOCALIZER, LOCALIZERS
-from tracker.audio.pipeline import TRACKERS, LocateResult, Pipeline, WindowSettings, choose_tracker
-from tracker.audio.sources import read_wav
+from tracker.audio.trackers import TRACKERS, choose_tracker
 from tracker.errors import ConfigError
+
+if TYPE_CHECKING:  # the pipeline (scipy, numba) is imported when a recording is located
+    from tracker.audio.pipeline import LocateResult
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add ``audio locate`` to the ``tracker`` parser."""
-    audio = subparsers.add_parser("audio", help="locate talkers in multichannel audio")
+    from tracker.cli import command_help
+
+    audio = subparsers.add_parser("audio", help=command_help("audio"))
     commands = audio.add_subparsers(dest="audio_command", metavar="SUBCOMMAND")
     locate = commands.add_parser(
         "locate",
@@ -61,6 +65,10 @@ def run_locate(args: argparse.Namespace) -> int:
     Directions are in the base frame: a head-mounted array's estimates are turned with the
     head's angles from ``--encoder`` (required for such an array, refused for a room one).
     """
+    from tracker.audio.head import check_coverage, locate_head_mounted, read_encoder_log
+    from tracker.audio.pipeline import Pipeline, WindowSettings
+    from tracker.audio.sources import read_wav
+
     array = load_array(args.array)
     fs_hz, audio = read_wav(args.recording)
     front = (-np.pi / 2, np.pi / 2) if args.front_only else None

@@ -19,15 +19,20 @@ import argparse
 import json
 import math
 import sys
+from typing import TYPE_CHECKING
 
-from tracker.drivers.motor import MotorDriver
-from tracker.drivers.sim import SimDriver, load_rig_config, rig_models
 from tracker.errors import ConfigError
-from tracker.plant.effects import get_param
-from tracker.workbench.friction_id import FrictionResult, run_friction_id
+
+if TYPE_CHECKING:  # the engine is imported when the command runs, not for --help
+    from tracker.drivers.motor import MotorDriver
+    from tracker.drivers.sim import SimDriver
+    from tracker.workbench.friction_id import FrictionResult
 
 
 def _rig(args: argparse.Namespace) -> SimDriver:
+    from tracker.drivers.sim import SimDriver, load_rig_config, rig_models
+    from tracker.plant.effects import get_param
+
     if args.hidden_effects and (args.effects or args.set):
         raise ConfigError("give either --hidden-effects RIG.json or --effects/--set, not both")
     if args.hidden_effects:
@@ -96,6 +101,8 @@ def _serial_rig(args: argparse.Namespace) -> MotorDriver:
 
 def run(args: argparse.Namespace) -> int:
     """``tracker friction-id``."""
+    from tracker.workbench.friction_id import run_friction_id
+
     driver = _serial_rig(args) if args.driver else _rig(args)
     try:
         res = run_friction_id(driver, args.axis, voltages_per_direction=args.voltages)
@@ -123,9 +130,9 @@ def run(args: argparse.Namespace) -> int:
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add ``tracker friction-id``."""
-    p = subparsers.add_parser(
-        "friction-id", help="identify viscous and Coulomb friction per direction (seed §3.1)"
-    )
+    from tracker.cli import command_help
+
+    p = subparsers.add_parser("friction-id", help=command_help("friction-id"))
     p.add_argument("--axis", required=True, choices=("pan", "tilt"))
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument(

@@ -270,7 +270,9 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add ``tracker model ...`` to the command line."""
-    p = subparsers.add_parser("model", help="model workbench: compare, fit, diagnose")
+    from tracker.cli import command_help
+
+    p = subparsers.add_parser("model", help=command_help("model"))
     sub = p.add_subparsers(dest="model_command", metavar="SUBCOMMAND")
     sub.required = True
 

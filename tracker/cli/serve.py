@@ -11,7 +11,9 @@ from typing import Any
 
 def register(subparsers: Any) -> None:
     """Add ``serve`` to the ``tracker`` command."""
-    p = subparsers.add_parser("serve", help="run the service (web console on the simulated rig)")
+    from tracker.cli import command_help
+
+    p = subparsers.add_parser("serve", help=command_help("serve"))
     p.add_argument("--host", default=None, help="listen address (console)")
     p.add_argument("--port", type=int, default=None, help="listen port (console)")
     p.add_argument("--config", default=None, metavar="FILE", help="service settings file")
