@@ -127,7 +127,13 @@ class MicArray:
         -------
         ndarray, shape (..., n_pairs)
         """
-        return np.asarray(directions) @ self.baselines_m.T / SPEED_OF_SOUND_M_PER_S
+        # Written out rather than a matrix product: the same direction gives the same delays
+        # to the last bit however many directions are asked for at once (BLAS may round a
+        # batch differently), so a window's estimate does not depend on its neighbours.
+        u = np.asarray(directions, dtype=float)[..., None, :]
+        b = self.baselines_m
+        return np.asarray((u[..., 0] * b[:, 0] + u[..., 1] * b[:, 1] + u[..., 2] * b[:, 2])
+                          / SPEED_OF_SOUND_M_PER_S)
 
 
 def unit_vector(azimuth_rad: FloatArray | float, elevation_rad: FloatArray | float) -> FloatArray:

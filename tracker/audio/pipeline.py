@@ -11,7 +11,8 @@ from numpy.typing import NDArray
 from tracker.audio.array import MicArray
 from tracker.audio.localizers import DEFAULT_LOCALIZER, Localizer, make_localizer
 from tracker.audio.localizers.base import DirectionEstimate, direction_grid
-from tracker.audio.localizers.spectra import SrpGrid
+from tracker.audio.localizers.frames import StftFrames
+from tracker.audio.localizers.spectra import GccTable, SrpGrid
 from tracker.audio.localizers.srp_phat import SrpPhat
 from tracker.audio.map_tracking import MapTracker, MapTrackerSettings
 from tracker.audio.trackers import TRACKERS, TrackerName
@@ -21,6 +22,10 @@ from tracker.audio.vad import SpeechDetector, VadSettings
 from tracker.errors import ConfigError, DataError
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+_CHUNK_WINDOWS = 8  # windows of one frame grid localized together (bounds the frames held)
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,6 +123,14 @@ class Pipeline:
     (:attr:`steer_azimuth_rad`) and turned into the base frame window by window with the head's
     angles (:func:`tracker.audio.head.map_to_base`). A room-mounted array's maps are steered
     straight on the base grid (the localizer's ``azimuth_range_rad``).
+
+    ``estimate_fine``: localize the long windows (``windows.fine_window_s``) even when the
+    tracker does not read them (True; the map tracker reads only the short windows' maps) or
+    never (False); None (default): when the tracker reads them.
+
+    With ``srp_phat`` every STFT frame is computed once and shared by all the windows holding
+    it (:class:`~tracker.audio.localizers.frames.StftFrames`), windows are localized in chunks
+    of 64 (:meth:`estimate_windows`); other localizers take one window at a time.
     """
 
     array: MicArray
@@ -131,6 +144,7 @@ class Pipeline:
     tracker: TrackerName = "kalman"
     map_tracking: MapTrackerSettings = field(default_factory=MapTrackerSettings)
     base_azimuth_range_rad: tuple[float, float] | None = None
+    estimate_fine: bool | None = None
     localizer: Localizer = field(init=False)
     map_azimuth_rad: FloatArray = field(init=False)
     steer_azimuth_rad: FloatArray = field(init=False)
@@ -182,32 +196,162 @@ class Pipeline:
         estimate, g = self.localizer.locate_with_gcc(frame)
         return estimate, self._map_grid.response(g)
 
-    def estimate_frames(self, audio: FloatArray) -> tuple[FrameEstimate, ...]:
-        """Raw estimate of every window of ``audio``, shape (n_mics, n_samples)."""
-        audio = check_recording(audio, self.array, self.fs_hz, self.windows.window_s)
+    @property
+    def estimates_fine(self) -> bool:
+        """True when the long windows are localized: there is one, and the tracker reads it
+        (the Kalman tracker does, the map tracker does not) or ``estimate_fine`` asks for it."""
+        if self.windows.fine_window_s is None:
+            return False
+        return self.tracker == "kalman" if self.estimate_fine is None else self.estimate_fine
+
+    def speech_windows(self, audio: FloatArray) -> tuple[IntArray, BoolArray]:
+        """Start samples of every window of ``audio`` (n_mics, n_samples) and the speech
+        detector's decision on each; shape (n_windows,) each."""
         detector = SpeechDetector(self.fs_hz, self.vad)
         features = detector.features(audio.mean(axis=0))
         n_win = int(round(self.windows.window_s * self.fs_hz))
         n_hop = int(round(self.windows.hop_s * self.fs_hz))
+        starts = np.arange(0, audio.shape[1] - n_win + 1, n_hop, dtype=np.int64)
+        speech = detector.windows_are_speech(features, starts / self.fs_hz,
+                                             (starts + n_win) / self.fs_hz)
+        return starts, speech
+
+    def estimate_frames(self, audio: FloatArray) -> tuple[FrameEstimate, ...]:
+        """Raw estimate of every window of ``audio``, shape (n_mics, n_samples)."""
+        audio = check_recording(audio, self.array, self.fs_hz, self.windows.window_s)
+        starts, speech = self.speech_windows(audio)
+        return tuple(self.estimate_windows(audio, 0, starts, speech))
+
+    def new_frames(self) -> StftFrames | None:
+        """A store of STFT frames shared by the windows (None for localizers that take one
+        window at a time)."""
+        return self.localizer.new_frames() if isinstance(self.localizer, SrpPhat) else None
+
+    def first_sample_needed(self, start: int) -> int:
+        """The earliest sample the window starting at ``start`` (and its long window) reads."""
+        n_win, n_fine = self._lengths()
+        return max(0, min(start, start + n_win - n_fine))
+
+    def _lengths(self) -> tuple[int, int]:
+        """Samples in a short window and in a long one (0 when long ones are not localized)."""
+        n_win = int(round(self.windows.window_s * self.fs_hz))
         fine_s = self.windows.fine_window_s
-        n_fine = int(round(fine_s * self.fs_hz)) if fine_s is not None else 0
-        frames = []
-        for start in range(0, audio.shape[1] - n_win + 1, n_hop):
-            start_s, end_s = start / self.fs_hz, (start + n_win) / self.fs_hz
-            speech = detector.window_is_speech(features, start_s, end_s)
+        n_fine = int(round(fine_s * self.fs_hz)) if fine_s is not None and self.estimates_fine else 0
+        return n_win, n_fine
+
+    def estimate_windows(self, audio: FloatArray, offset: int, starts: IntArray,
+                         speech: BoolArray, frames: StftFrames | None = None
+                         ) -> list[FrameEstimate]:
+        """Raw estimates of the windows starting at ``starts`` (absolute samples, increasing).
+
+        ``audio`` (n_mics, n) holds samples ``offset..offset + n``, every window and its long
+        window inside; ``speech`` (n_windows,) is the speech detector's decision on each (long
+        windows are localized for speech windows only). ``frames`` (from :meth:`new_frames`),
+        when given, keeps STFT frames between calls (a stream's next windows reuse them);
+        without it a recording's windows are localized frame grid by frame grid with a store
+        of their own.
+        """
+        fs = self.fs_hz
+        n_win, n_fine = self._lengths()
+        starts = np.asarray(starts, dtype=np.int64)
+        ends = starts + n_win
+        speech = np.asarray(speech, dtype=bool)
+        if isinstance(self.localizer, SrpPhat):
+            located = self._locate_srp(audio, offset, starts, speech, frames)
+        else:
+            located = self._locate_each(audio, offset, starts, speech)
+        out = []
+        for k in range(starts.size):
+            start_s, end_s = int(starts[k]) / fs, int(ends[k]) / fs
+            estimate, fine, power_map = located[k]
+            out.append(FrameEstimate(0.5 * (start_s + end_s), end_s, estimate.azimuth_rad,
+                                     estimate.elevation_rad, estimate.confidence,
+                                     bool(speech[k]), fine, power_map))
+        return out
+
+    def _locate_each(self, audio: FloatArray, offset: int, starts: IntArray, speech: BoolArray
+                     ) -> list[tuple[DirectionEstimate, float | None, FloatArray | None]]:
+        """One window at a time (localizers without shared frames)."""
+        n_win, n_fine = self._lengths()
+        out = []
+        for start, is_speech in zip(starts.tolist(), speech.tolist(), strict=True):
+            window = audio[:, start - offset : start + n_win - offset]
             power_map = None
             if self.tracker == "map":
-                estimate, power_map = self.locate_with_map(audio[:, start : start + n_win])
+                estimate, power_map = self.locate_with_map(window)
             else:
-                estimate = self.localizer.locate(audio[:, start : start + n_win])
+                estimate = self.localizer.locate(window)
             fine = None
-            if speech and n_fine:
+            if is_speech and n_fine:
                 lo = max(0, start + n_win - n_fine)
-                fine = self.localizer.locate(audio[:, lo : start + n_win]).azimuth_rad
-            frames.append(FrameEstimate(0.5 * (start_s + end_s), end_s, estimate.azimuth_rad,
-                                        estimate.elevation_rad, estimate.confidence, speech,
-                                        fine, power_map))
-        return tuple(frames)
+                fine = self.localizer.locate(audio[:, lo - offset : start + n_win - offset]
+                                             ).azimuth_rad
+            out.append((estimate, fine, power_map))
+        return out
+
+    def _locate_srp(self, audio: FloatArray, offset: int, starts: IntArray, speech: BoolArray,
+                    frames: StftFrames | None
+                    ) -> list[tuple[DirectionEstimate, float | None, FloatArray | None]]:
+        """Every short window and the long windows of the speech windows, over shared frames.
+
+        The jobs (window start, length) are localized grouped by length; a recording (no
+        ``frames`` given) is done grid by grid (start modulo the frame hop: windows on one grid
+        share frames) in chunks of time, so the frames held stay few.
+        """
+        assert isinstance(self.localizer, SrpPhat)
+        n_win, n_fine = self._lengths()
+        fine_windows = np.flatnonzero(speech) if n_fine else np.zeros(0, dtype=np.int64)
+        fine_lo = np.maximum(0, starts[fine_windows] + n_win - n_fine)
+        job_start = np.concatenate([starts, fine_lo])
+        job_length = np.concatenate([np.full(starts.size, n_win),
+                                     starts[fine_windows] + n_win - fine_lo])
+        n_short = starts.size
+        azimuth, elevation, confidence = (np.empty(job_start.size) for _ in range(3))
+        maps = (np.empty((n_short, self._map_grid.azimuth_rad.size))
+                if self._map_grid is not None else None)
+        if frames is not None:
+            self._locate_jobs(frames, audio, offset, job_start, job_length, n_short,
+                              np.arange(job_start.size), azimuth, elevation, confidence, maps)
+        else:
+            grid = job_start % (self.localizer.settings.nfft // 2)
+            for g in np.unique(grid):
+                store = self.localizer.new_frames()  # one grid's frames, dropped after it
+                members = np.flatnonzero(grid == g)
+                members = members[np.argsort(job_start[members], kind="stable")]
+                for i in range(0, members.size, _CHUNK_WINDOWS):
+                    chunk = members[i : i + _CHUNK_WINDOWS]
+                    store.forget_before(int(job_start[chunk[0]]))  # earlier jobs are done
+                    self._locate_jobs(store, audio, offset, job_start, job_length, n_short,
+                                      chunk, azimuth, elevation, confidence, maps)
+        fine: list[float | None] = [None] * n_short
+        for j, k in enumerate(fine_windows.tolist()):
+            fine[k] = float(azimuth[n_short + j])
+        resolves = self.array.resolves_elevation
+        return [(DirectionEstimate(float(azimuth[k]),
+                                   float(elevation[k]) if resolves else None,
+                                   float(confidence[k])),
+                 fine[k], None if maps is None else maps[k]) for k in range(n_short)]
+
+    def _locate_jobs(self, store: StftFrames, audio: FloatArray, offset: int,
+                     job_start: IntArray, job_length: IntArray, n_short: int, jobs: IntArray,
+                     azimuth: FloatArray, elevation: FloatArray, confidence: FloatArray,
+                     maps: FloatArray | None) -> None:
+        """Localize ``jobs`` (indices into ``job_start``/``job_length``; the first ``n_short``
+        jobs are the short windows, which also get maps) into the output arrays."""
+        assert isinstance(self.localizer, SrpPhat)
+        for length in np.unique(job_length[jobs]):
+            some = jobs[job_length[jobs] == length]
+            frame_starts = job_start[some, None] + self.localizer.frame_starts(0, int(length))
+            store.add(audio, offset, frame_starts)
+            short = some < n_short
+            # Of a long window only the azimuth is read: no confidence weighting.
+            located = self.localizer.locate_rows(store, store.rows(frame_starts),
+                                                 with_confidence=bool(np.any(short)))
+            azimuth[some], elevation[some] = located.azimuth_rad, located.elevation_rad
+            confidence[some] = located.confidence
+            if maps is not None and self._map_grid is not None and np.any(short):
+                tables = GccTable(located.gcc.values[short], located.gcc.first_lag)
+                maps[some[short]] = np.atleast_2d(self._map_grid.response(tables))
 
     def track(self, frames: tuple[FrameEstimate, ...]) -> tuple[TrackPoint, ...]:
         """Run the talker tracker over frames in time order (fresh tracker each call)."""

@@ -207,6 +207,15 @@ class SpeechDetector:
         too_early = count < s.min_pitched_frames
         return np.asarray(too_early | (spread <= s.steady_pitch_tolerance * 1.0000001), dtype=bool)
 
+    def windows_are_speech(self, features: VadFeatures, start_s: FloatArray, end_s: FloatArray
+                           ) -> BoolArray:
+        """:meth:`window_is_speech` of many windows ``[start_s, end_s)``; shape of ``start_s``."""
+        voiced = np.concatenate([[0], np.cumsum(features.voiced)])
+        lo = np.searchsorted(features.times_s, start_s, side="left")
+        hi = np.searchsorted(features.times_s, end_s, side="left")
+        return np.asarray((voiced[hi] - voiced[lo]) * self.settings.hop_s
+                          >= self.settings.min_voiced_s, dtype=bool)
+
     def window_is_speech(self, features: VadFeatures, start_s: float, end_s: float) -> bool:
         """True when the voiced frames in ``[start_s, end_s)`` add up to ``min_voiced_s``."""
         inside = (features.times_s >= start_s) & (features.times_s < end_s)

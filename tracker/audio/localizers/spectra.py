@@ -7,9 +7,10 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy import special
 
 from tracker.audio.array import MicArray, unit_vector
+from tracker.audio.localizers.srp_kernels import gcc_at_lags, table_response
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -109,9 +110,12 @@ def snr_weights(spectra: ComplexArray, noise_quantile: float = 0.1) -> FloatArra
 
 
 @lru_cache(maxsize=32)
-def _gamma_quantile(quantile: float, n_mics: int) -> float:
-    """Quantile of the mean of ``n_mics`` unit-power exponential variables (Gamma(n, 1/n))."""
-    return float(stats.gamma.ppf(quantile, n_mics, scale=1.0 / n_mics))
+def gamma_quantile(quantile: float, n_mics: int) -> float:
+    """Quantile of the mean of ``n_mics`` unit-power exponential variables (Gamma(n, 1/n)).
+
+    ``scipy.stats.gamma.ppf(quantile, n_mics, scale=1 / n_mics)``, without importing scipy.stats.
+    """
+    return float(special.gammaincinv(n_mics, quantile) * (1.0 / n_mics))
 
 
 def noise_floor(power: FloatArray, n_mics: int, quantile: float = 0.1, block_bins: int = 17
@@ -135,16 +139,21 @@ def noise_floor(power: FloatArray, n_mics: int, quantile: float = 0.1, block_bin
     ndarray, shape (n_freq,)
     """
     n_frames, n_freq = power.shape
-    n_blocks = max(1, n_freq // block_bins)
-    edges = np.linspace(0, n_freq, n_blocks + 1).astype(int)
-    floors = np.empty(n_blocks)
-    for b in range(n_blocks):
+    edges, centres = noise_blocks(n_freq, block_bins)
+    floors = np.empty(centres.size)
+    for b in range(centres.size):
         values = power[:, edges[b] : edges[b + 1]].ravel()
         k = int(quantile * (values.size - 1))
         floors[b] = np.partition(values, k)[k]
-    centres = 0.5 * (edges[:-1] + edges[1:] - 1)
-    scale = _gamma_quantile(quantile, n_mics)
+    scale = gamma_quantile(quantile, n_mics)
     return np.asarray(np.interp(np.arange(n_freq), centres, floors) / scale)
+
+
+def noise_blocks(n_freq: int, block_bins: int = 17) -> tuple[NDArray[np.int64], FloatArray]:
+    """The frequency blocks of :func:`noise_floor`: edges (n_blocks + 1,) and centres (n_blocks,)."""
+    n_blocks = max(1, n_freq // block_bins)
+    edges = np.linspace(0, n_freq, n_blocks + 1).astype(np.int64)
+    return edges, np.asarray(0.5 * (edges[:-1] + edges[1:] - 1), dtype=float)
 
 
 def snr_ratio_weights(power: FloatArray, noise: FloatArray, exponent: float, cap: float = 30.0
@@ -242,6 +251,25 @@ def steered_response(cross: ComplexArray, delays_s: FloatArray, fs_hz: int) -> f
     return float(np.mean(np.sum((cross * steer).real, axis=1) / total))
 
 
+def steered_responses(cross_band: ComplexArray, freqs_hz: FloatArray, delays_s: FloatArray
+                      ) -> FloatArray:
+    """:func:`steered_response` of many windows, from cross-spectra at the band's bins only.
+
+    Parameters
+    ----------
+    cross_band : ndarray, shape (n_windows, n_pairs, n_band)
+    freqs_hz : ndarray, shape (n_band,)
+    delays_s : ndarray, shape (n_windows, n_pairs)
+
+    Returns
+    -------
+    ndarray, shape (n_windows,)
+    """
+    steer = np.exp(-2j * np.pi * freqs_hz[None, None, :] * delays_s[:, :, None])
+    total = np.sum(np.abs(cross_band), axis=2) + _EPS
+    return np.asarray(np.mean(np.sum((cross_band * steer).real, axis=2) / total, axis=1))
+
+
 @dataclass(frozen=True, slots=True)
 class GridPeak:
     """The best direction on a grid and its steered response (mean GCC over pairs)."""
@@ -249,6 +277,58 @@ class GridPeak:
     azimuth_rad: float
     elevation_rad: float
     power: float
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GccTable:
+    """Upsampled GCCs of one or more windows at the lags a direction grid can ask for.
+
+    ``values[..., p, c]`` is pair ``p``'s GCC (as :func:`gcc` gives it) at lag
+    ``first_lag + c`` in units of ``1 / (fs * upsample)``; shape (..., n_pairs, n_lags).
+    """
+
+    values: FloatArray
+    first_lag: int
+
+    def window(self, k: int) -> GccTable:
+        """Window ``k`` of a stack of tables."""
+        return GccTable(self.values[k], self.first_lag)
+
+
+def lag_limit(array: MicArray, fs_hz: int, settings: SpectralSettings) -> int:
+    """Largest lag (in ``1 / (fs * upsample)``) a plane wave gives any pair, plus interpolation room."""
+    return int(np.ceil(float(np.max(array.max_lag_s)) * fs_hz * settings.upsample)) + 2
+
+
+class GccSteering:
+    """Upsampled GCCs at the physical lags only, straight from the band's cross-spectra.
+
+    The GCC of :func:`gcc` at lag ``k`` is ``Re(sum_f C(f) exp(2 pi i f k / n)) / sum_f |C(f)|``
+    (``n = nfft * upsample``); only the lags ``-limit..limit`` a direction can give are
+    evaluated (:func:`~tracker.audio.localizers.srp_kernels.gcc_at_lags`), instead of an
+    ``n``-point inverse FFT per pair.
+    """
+
+    def __init__(self, array: MicArray, fs_hz: int, settings: SpectralSettings,
+                 band_bins: NDArray[np.int64]) -> None:
+        self.limit = lag_limit(array, fs_hz, settings)
+        n_lags = settings.nfft * settings.upsample
+        lags = np.arange(-self.limit, self.limit + 1)
+        phase = 2.0 * np.pi * np.outer(band_bins, lags) / n_lags  # (n_band, n_table)
+        self._cosines = np.ascontiguousarray(np.cos(phase))
+        self._minus_sines = np.ascontiguousarray(-np.sin(phase))
+
+    def table(self, cross_band: ComplexArray) -> GccTable:
+        """GCC tables of cross-spectra at the band's bins, shape (n_windows, n_pairs, n_band)."""
+        values = gcc_at_lags(np.ascontiguousarray(cross_band, dtype=np.complex128),
+                             self._cosines, self._minus_sines)
+        return GccTable(values, -self.limit)
+
+
+def gcc_table(g: FloatArray, limit: int) -> GccTable:
+    """The lags ``-limit..limit`` of full GCCs ``g``, shape (n_pairs, n_lags), as a table."""
+    lags = np.arange(-limit, limit + 1)
+    return GccTable(np.asarray(g[:, lags % g.shape[1]]), -limit)
 
 
 class SrpGrid:
@@ -274,50 +354,80 @@ class SrpGrid:
         self.array = array
         self.fs_hz = fs_hz
         self.settings = settings
-        self.azimuth_rad = azimuth_rad
-        self.elevation_rad = elevation_rad
+        self.azimuth_rad = np.asarray(azimuth_rad, dtype=float)
+        self.elevation_rad = np.asarray(elevation_rad, dtype=float)
         self._lag_scale = fs_hz * settings.upsample
-        self._n_lags = settings.nfft * settings.upsample
-        self._coarse_lags = self._lags(azimuth_rad, elevation_rad)
-        self._pair_index = np.arange(len(array.pairs))[None, :]
+        self.limit = lag_limit(array, fs_hz, settings)
+        self._coarse = self._columns(self._lags(self.azimuth_rad, self.elevation_rad), -self.limit)
+        self._az_step = _grid_step(self.azimuth_rad)
+        self._el_step = _grid_step(self.elevation_rad)
 
     def _lags(self, azimuth_rad: FloatArray, elevation_rad: FloatArray) -> FloatArray:
-        """Fractional GCC lag index of every pair for every direction; shape (n_grid, n_pairs).
+        """Fractional GCC lag of every pair for every direction; shape (..., n_pairs).
 
         The GCC of pair (i, j) peaks at ``t_i - t_j``, minus the delay of j behind i.
         """
         return -self.array.delays_s(unit_vector(azimuth_rad, elevation_rad)) * self._lag_scale
 
-    def _response(self, g: FloatArray, lags: FloatArray) -> FloatArray:
-        """Mean over pairs of the linearly interpolated GCC; shape (n_grid,)."""
+    @staticmethod
+    def _columns(lags: FloatArray, first_lag: int) -> tuple[NDArray[np.int64], FloatArray]:
+        """Table column at or below each lag and the fraction towards the next one."""
         low = np.floor(lags)
-        frac = lags - low
-        i0 = low.astype(np.int64) % self._n_lags
-        i1 = (i0 + 1) % self._n_lags
-        values = (1.0 - frac) * g[self._pair_index, i0] + frac * g[self._pair_index, i1]
-        return np.asarray(values.mean(axis=1))
+        return (low - first_lag).astype(np.int64), np.asarray(lags - low)
 
-    def response(self, g: FloatArray) -> FloatArray:
-        """SRP on the coarse grid for GCCs ``g`` of shape (n_pairs, n_lags); shape (n_grid,)."""
-        return self._response(g, self._coarse_lags)
+    def _table(self, g: FloatArray | GccTable) -> GccTable:
+        return g if isinstance(g, GccTable) else gcc_table(np.asarray(g), self.limit)
 
-    def peak(self, g: FloatArray, refine_step_rad: float = np.deg2rad(0.25)) -> GridPeak:
-        """Best coarse grid point, refined on a fine local grid around it."""
-        coarse = self.response(g)
-        best = int(np.argmax(coarse))
+    def response(self, g: FloatArray | GccTable) -> FloatArray:
+        """SRP on the coarse grid; shape (n_grid,) for one window's GCCs (full, shape
+        (n_pairs, nfft * upsample), or a table), (n_windows, n_grid) for a stack of tables."""
+        table = self._table(g)
+        values = np.ascontiguousarray(table.values)
+        columns, fractions = self._coarse
+        if table.first_lag != -self.limit:
+            columns = columns - (table.first_lag + self.limit)
+        if values.ndim == 2:
+            return np.asarray(table_response(values[None], columns, fractions)[0])
+        return np.asarray(table_response(values, columns, fractions))
+
+    def peak(self, g: FloatArray | GccTable, refine_step_rad: float = np.deg2rad(0.25)) -> GridPeak:
+        """Best coarse grid point of one window, refined on a fine local grid around it."""
+        table = self._table(g)
+        peaks = self.peaks(GccTable(table.values[None], table.first_lag), refine_step_rad)
+        return GridPeak(float(peaks[0][0]), float(peaks[1][0]), float(peaks[2][0]))
+
+    def peaks(self, tables: GccTable, refine_step_rad: float = np.deg2rad(0.25)
+              ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Best coarse grid point of each window, refined on a fine local grid around it.
+
+        ``tables.values`` has shape (n_windows, n_pairs, n_lags). Returns azimuth, elevation
+        (rad) and steered response (the larger of the coarse and fine peaks), each (n_windows,).
+        """
+        coarse = self.response(tables)
+        best = np.argmax(coarse, axis=1)
         az0, el0 = self.azimuth_rad[best], self.elevation_rad[best]
-        span = _grid_step(self.azimuth_rad)
+        span = self._az_step
         offsets = np.arange(-span, span + refine_step_rad / 2, refine_step_rad)
         if self.array.resolves_elevation:
-            el_span = _grid_step(self.elevation_rad)
+            el_span = self._el_step
             el_offsets = np.arange(-el_span, el_span + refine_step_rad, 2 * refine_step_rad)
-            d_az, d_el = np.meshgrid(offsets, el_offsets, indexing="ij")
-            az, el = az0 + d_az.ravel(), np.clip(el0 + d_el.ravel(), -np.pi / 2, np.pi / 2)
+            d_az, d_el = (d.ravel() for d in np.meshgrid(offsets, el_offsets, indexing="ij"))
+            az = az0[:, None] + d_az[None, :]
+            el = np.clip(el0[:, None] + d_el[None, :], -np.pi / 2, np.pi / 2)
         else:
-            az, el = az0 + offsets, np.full_like(offsets, el0)
-        fine = self._response(g, self._lags(az, el))
-        k = int(np.argmax(fine))
-        return GridPeak(float(az[k]), float(el[k]), float(max(fine[k], coarse[best])))
+            az = az0[:, None] + offsets[None, :]
+            el = np.broadcast_to(el0[:, None], az.shape)
+        columns, fractions = self._columns(self._lags(az, el), tables.first_lag)  # (K, R, P)
+        values = tables.values
+        windows = np.arange(values.shape[0])[:, None, None]
+        pairs = np.arange(values.shape[1])[None, None, :]
+        fine = ((1.0 - fractions) * values[windows, pairs, columns]
+                + fractions * values[windows, pairs, columns + 1]).mean(axis=2)
+        k = np.argmax(fine, axis=1)
+        rows = np.arange(values.shape[0])
+        power = np.maximum(fine[rows, k], coarse[rows, best])
+        return (np.asarray(az[rows, k], dtype=float), np.asarray(el[rows, k], dtype=float),
+                np.asarray(power, dtype=float))
 
 
 def _grid_step(values: FloatArray) -> float:
