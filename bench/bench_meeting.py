@@ -44,7 +44,7 @@ def _frames(seed: int, duration_s: float, settings: MeetingSettings, cache: Path
     if path is not None and path.exists():
         with path.open("rb") as fh:
             return pickle.load(fh)
-    data = meeting_frames(seed, duration_s, settings)
+    data = meeting_frames(seed, duration_s, settings, estimate_fine=True)  # long windows scored
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("wb") as fh:

@@ -52,7 +52,9 @@ def _frames(seed: int, duration_s: float, recording, settings: MeetingSettings, 
     from tracker.scenarios.meeting import _ARRAYS_DIR, _pipeline
 
     array = load_array(_ARRAYS_DIR / settings.array_file)
-    frames = _pipeline(settings, array, recording.fs_hz).estimate_frames(recording.audio)
+    # Both trackers on the same frames: the long windows too (the Kalman tracker reads them).
+    frames = _pipeline(settings, array, recording.fs_hz, estimate_fine=True).estimate_frames(
+        recording.audio)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("wb") as fh:

@@ -196,21 +196,28 @@ def run_meeting(seed: int = 0, duration_s: float = 60.0,
     return camera_result(recording, turns, frames, settings, seed).result
 
 
-def meeting_frames(seed: int, duration_s: float, settings: MeetingSettings
+def meeting_frames(seed: int, duration_s: float, settings: MeetingSettings,
+                   estimate_fine: bool | None = None
                    ) -> tuple[room.Recording, tuple[Turn, ...], tuple[FrameEstimate, ...]]:
-    """The meeting's audio and the localizer's per-window estimates (the costly part)."""
+    """The meeting's audio and the localizer's per-window estimates (the costly part).
+
+    ``estimate_fine=True`` also localizes the long windows when the tracker does not read
+    them (to score them, or to run the other tracker on the same frames).
+    """
     if not 10.0 <= duration_s <= 600.0:
         raise ConfigError(f"meeting duration_s={duration_s} outside 10-600 s")
     array = load_array(_ARRAYS_DIR / settings.array_file)
     recording, turns = build_meeting(seed, duration_s, settings, array)
-    frames = _pipeline(settings, array, recording.fs_hz).estimate_frames(recording.audio)
-    return recording, turns, frames
+    pipeline = _pipeline(settings, array, recording.fs_hz, estimate_fine)
+    return recording, turns, pipeline.estimate_frames(recording.audio)
 
 
-def _pipeline(settings: MeetingSettings, array: MicArray, fs_hz: int) -> Pipeline:
+def _pipeline(settings: MeetingSettings, array: MicArray, fs_hz: int,
+              estimate_fine: bool | None = None) -> Pipeline:
     return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
                     localizer_options={"azimuth_range_rad": (-np.pi / 2, np.pi / 2)},
-                    tracker=settings.tracker, map_tracking=settings.map_tracking)
+                    tracker=settings.tracker, map_tracking=settings.map_tracking,
+                    estimate_fine=estimate_fine)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
