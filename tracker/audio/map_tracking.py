@@ -39,8 +39,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import gaussian_filter1d
 
+from tracker.audio.filters import gaussian_blur
 from tracker.audio.tracking import TrackPoint, back_and_forth_midpoint
 from tracker.errors import ConfigError, DataError
 
@@ -234,7 +234,7 @@ class MapTracker:
         post = (1.0 - mix) * post + mix * self._rate_prior[:, None] * marginal[None, :]
         sigma = s.diffusion_rad_per_sqrt_s * np.sqrt(dt) / self._step_rad
         if sigma > 1e-3:
-            post = gaussian_filter1d(post, sigma, axis=1, mode="nearest")
+            post = gaussian_blur(post, sigma)
         self._posterior = post / post.sum()
 
     def _keep_walking(self, post: FloatArray, dt: float) -> FloatArray:

@@ -6,9 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
-from scipy.ndimage import minimum_filter1d, uniform_filter1d
 
+from tracker.audio.filters import butter_lowpass_sos, running_mean, running_min, sosfilt
 from tracker.errors import ConfigError
 
 FloatArray = NDArray[np.float64]
@@ -112,8 +111,7 @@ class SpeechDetector:
         self._lags = np.arange(
             int(fs_hz / s.pitch_range_hz[1]), int(np.ceil(fs_hz / s.pitch_range_hz[0])) + 1
         )
-        self._sos_low = signal.butter(4, min(1000.0, 0.45 * fs_hz), "lowpass", fs=fs_hz,
-                                      output="sos")
+        self._sos_low = butter_lowpass_sos(4, min(1000.0, 0.45 * fs_hz), fs_hz)
         freqs = np.fft.rfftfreq(self.nfft, 1.0 / fs_hz)
         self._band = (freqs >= 200.0) & (freqs <= 4000.0)
 
@@ -150,7 +148,7 @@ class SpeechDetector:
         total = spectrum.sum(axis=-1) + 1e-20
         speech_band = spectrum[:, self._band].sum(axis=-1) / total
         level_db = 10 * np.log10(np.mean(frames**2, axis=-1) + 1e-20)
-        low = signal.sosfilt(self._sos_low, mono)[index] * self._window
+        low = sosfilt(self._sos_low, mono)[index] * self._window
         acf = np.fft.irfft(np.abs(np.fft.rfft(low, self.nfft, axis=-1)) ** 2, axis=-1)
         acf = acf[:, : self.frame] / (acf[:, :1] + 1e-20) / self._window_acf[None, : self.frame]
         in_range = acf[:, self._lags]
@@ -164,23 +162,20 @@ class SpeechDetector:
         floor_frames = max(1, int(round(self.settings.floor_window_s / self.settings.hop_s)))
         s = self.settings
         if s.causal:  # trailing 5-frame mean
-            smoothed = uniform_filter1d(level_db, size=5, mode="nearest", origin=2)
+            smoothed = running_mean(level_db, 5, origin=2)
         else:
-            smoothed = uniform_filter1d(level_db, size=5, mode="nearest")
+            smoothed = running_mean(level_db, 5)
         # Causal minimum over the trailing window: shift the centred filter's origin.
-        floor_db = minimum_filter1d(smoothed, size=floor_frames, mode="nearest",
-                                    origin=(floor_frames - 1) // 2)
+        floor_db = running_min(smoothed, floor_frames, origin=(floor_frames - 1) // 2)
         half = max(1, int(round(s.modulation_window_s / 2 / s.hop_s)))
         # Rise over the lowest level in the half window before (and, not causal, after) the
         # frame: syllables dip, a steady fan or hum does not.
-        modulation_db = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
-                                                    origin=(half - 1) // 2)
+        modulation_db = smoothed - running_min(smoothed, half, origin=(half - 1) // 2)
         pitched = harmonicity >= s.harmonicity_min
         if s.causal:
             pitched &= ~self._steady_pitch(period.astype(float), pitched)
         else:
-            dip_after = smoothed - minimum_filter1d(smoothed, size=half, mode="nearest",
-                                                    origin=-(half // 2))
+            dip_after = smoothed - running_min(smoothed, half, origin=-(half // 2))
             modulation_db = np.minimum(modulation_db, dip_after)
         voiced = (
             (level_db >= floor_db + s.level_above_floor_db)
