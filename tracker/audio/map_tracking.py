@@ -37,6 +37,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import bisect
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -115,10 +117,16 @@ class _Seat:
 
     positions_rad: list[float]
     last_t_s: float
+    azimuth_rad: float = field(init=False)  # the median of positions_rad
 
-    @property
-    def azimuth_rad(self) -> float:
-        return float(np.median(self.positions_rad))
+    def __post_init__(self) -> None:
+        self.azimuth_rad = float(np.median(self.positions_rad))
+
+    def add(self, t_s: float, azimuth_rad: float) -> None:
+        """Another tracked position (the oldest beyond the last ``_SEAT_POSITIONS`` is dropped)."""
+        self.positions_rad = [*self.positions_rad[-(_SEAT_POSITIONS - 1):], azimuth_rad]
+        self.azimuth_rad = float(np.median(self.positions_rad))
+        self.last_t_s = t_s
 
 
 @dataclass(slots=True)
@@ -153,6 +161,7 @@ class MapTracker:
     _history: list[tuple[float, float]] = field(default_factory=list)  # (t_s, talker azimuth_rad)
     _walked: bool = False  # the current talker has walked during this turn
     _confidences: list[tuple[float, float]] = field(default_factory=list)  # speech windows'
+    _sorted_confidences: list[float] = field(default_factory=list)  # the same, sorted
 
     def __post_init__(self) -> None:
         az = np.asarray(self.azimuth_rad, dtype=float)
@@ -205,10 +214,15 @@ class MapTracker:
         """A window's weight: its confidence over recent speech windows' median (``keep``: a
         speech window, one of them), to the ``confidence_power``."""
         s = self.settings
-        self._confidences = [c for c in self._confidences if t_s - c[0] <= s.confidence_window_s]
+        while self._confidences and t_s - self._confidences[0][0] > s.confidence_window_s:
+            _, old = self._confidences.pop(0)
+            del self._sorted_confidences[bisect.bisect_left(self._sorted_confidences, old)]
         if keep or not self._confidences:
             self._confidences.append((t_s, confidence))
-        median = float(np.median([c for _, c in self._confidences]))
+            bisect.insort(self._sorted_confidences, confidence)
+        values, n = self._sorted_confidences, len(self._sorted_confidences)
+        # np.median of the window's confidences, from the kept sorted copy
+        median = values[n // 2] if n % 2 else (values[n // 2 - 1] + values[n // 2]) / 2
         if s.confidence_power <= 0.0 or median <= 0.0:
             return 1.0
         return float(np.clip(confidence / median, 0.0, 3.0) ** s.confidence_power)
@@ -218,10 +232,7 @@ class MapTracker:
         if dt <= 0.0:
             return
         if moving:
-            shifted = np.empty_like(post)
-            for k, rate in enumerate(self._rates):
-                shifted[k] = _shift(post[k], rate * dt / self._step_rad)
-            post = shifted
+            post = _shift_rows(post, self._rates * dt / self._step_rad)
             mix = 1.0 - (1.0 - s.rate_mixing) ** (dt / 0.1)
         else:  # pause: the walker stops, every hypothesis falls back to the rate prior
             mix = 1.0
@@ -372,8 +383,7 @@ class MapTracker:
                 if abs(seat.azimuth_rad - azimuth_rad) <= self.settings.gate_rad]
         if near:
             seat = min(near, key=lambda x: abs(x.azimuth_rad - azimuth_rad))
-            seat.positions_rad = [*seat.positions_rad[-(_SEAT_POSITIONS - 1):], azimuth_rad]
-            seat.last_t_s = t_s
+            seat.add(t_s, azimuth_rad)
         else:
             self._seats.append(_Seat([azimuth_rad], t_s))
 
@@ -412,7 +422,14 @@ class MapTracker:
         return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)
 
 
-def _shift(row: FloatArray, cells: float) -> FloatArray:
-    """``row`` moved by a fractional number of cells (linear interpolation; the edges hold)."""
-    index = np.arange(row.size, dtype=float) - cells
-    return np.asarray(np.interp(index, np.arange(row.size, dtype=float), row))
+def _shift_rows(rows: FloatArray, cells: FloatArray) -> FloatArray:
+    """Row ``k`` of ``rows`` (n_rows, n) moved by ``cells[k]`` cells (linear interpolation; the
+    edges hold): ``np.interp(arange(n) - cells[k], arange(n), rows[k])`` for every row at once,
+    with np.interp's formula."""
+    n = rows.shape[1]
+    x = np.arange(n, dtype=float)[None, :] - cells[:, None]
+    j = np.clip(np.floor(x), 0, n - 2).astype(np.int64)
+    k = np.arange(rows.shape[0])[:, None]
+    left, right = rows[k, j], rows[k, j + 1]
+    inside = (right - left) * (x - j) + left
+    return np.asarray(np.where(x <= 0.0, rows[:, :1], np.where(x >= n - 1, rows[:, -1:], inside)))
