@@ -35,9 +35,8 @@ when she leaves ``deadband_rad`` (``moving_deadband_rad`` above ``moving_rate_ra
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import bisect
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
