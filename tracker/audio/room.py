@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
 from tracker.audio.array import MicArray
 from tracker.errors import ConfigError
@@ -174,7 +173,8 @@ def simulate(
     -------
     Recording, audio shape (n_mics, n_samples) with n_samples the longest talker signal.
     """
-    import pyroomacoustics as pra  # heavy import; only simulations need it
+    import pyroomacoustics as pra  # heavy imports; only simulations need them
+    from scipy import signal
 
     fs = settings.fs_hz
     mics_room = placement.to_room(array.positions_m)

@@ -4,14 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.io import wavfile
 
-from tracker.audio.room import Recording
 from tracker.errors import DataError, DriverFault
+
+if TYPE_CHECKING:  # a room simulation needs scipy.signal and pyroomacoustics: not for WAV files
+    from tracker.audio.room import Recording
 
 FloatArray = NDArray[np.float64]
 
