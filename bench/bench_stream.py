@@ -1,51 +1,76 @@
-"""CPU of the streaming localizer: ms of CPU per second of audio (meeting settings, 4 mics, 16 kHz).
+"""CPU of the streaming localizer per room: ms of CPU per second of audio, and % of one core.
 
-Run: .venv/bin/python bench/bench_stream.py
+The console streams each room's array through ``StreamingLocator`` in 0.1 s blocks with the
+meeting settings (``app.audio.meeting_pipeline``: srp_phat over -90°..90°, 0.3 s windows every
+0.1 s, the map tracker). This runs that pipeline, and the same windows with the Kalman tracker
+(which also localizes 1.5 s windows), on a simulated meeting (the meeting scenario's room,
+4-mic square, 16 kHz), streamed and in one batch, CPU time best of ``--repeat``.
+
+Run: .venv/bin/python bench/bench_stream.py [--duration 60] [--repeat 3]
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
+import dataclasses
 import time
 from pathlib import Path
 
 import numpy as np
 
-from tracker.audio.array import load_array
 from tracker.audio.pipeline import Pipeline
-from tracker.audio.speech import synthetic_speech
 from tracker.audio.stream import StreamingLocator, stream_blocks
-from tracker.scenarios.meeting import MeetingSettings
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def meeting_audio(duration_s: float, seed: int) -> tuple[int, np.ndarray]:
+    """The simulated meeting (the console's default input) for the shipped 4-mic square."""
+    from app.audio import load_meeting_array
+    from tracker.scenarios.meeting import MeetingSettings, build_meeting
+
+    recording, _ = build_meeting(seed, duration_s, MeetingSettings(), load_meeting_array())
+    return int(recording.fs_hz), np.asarray(recording.audio)
+
+
+def cpu_s(run: object, repeat: int) -> float:
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.process_time()
+        run()  # type: ignore[operator]
+        best = min(best, time.process_time() - t0)
+    return float(best)
+
+
 def main() -> int:
-    ms = MeetingSettings()
-    array = load_array(ROOT / "examples" / "arrays" / ms.array_file)
-    fs = 16000
-    duration_s = float(sys.argv[1]) if len(sys.argv) > 1 else 20.0
-    rng = np.random.default_rng(0)
-    speech = synthetic_speech(duration_s, fs, seed=0).samples
-    audio = speech[None, :] + 0.01 * rng.standard_normal((array.n_mics, speech.size))
-    opts = {"azimuth_range_rad": (-np.pi / 2, np.pi / 2)}
+    from app.audio import meeting_pipeline
 
-    def pipe() -> Pipeline:
-        return Pipeline(array, fs, ms.method, ms.windows, tracking=ms.tracking,
-                        localizer_options=opts)
-
-    stream_blocks(StreamingLocator(pipe()), [audio[:, : 3 * fs]])  # warm up (numba, FFT plans)
-    t0 = time.process_time()
-    pipe().run(audio)
-    batch_s = time.process_time() - t0
-    loc = StreamingLocator(pipe())
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=60.0)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    fs, audio = meeting_audio(args.duration, args.seed)
+    console = meeting_pipeline(fs)
+    setups = {"console (map tracker)": console,
+              "Kalman tracker, 1.5 s windows": dataclasses.replace(console, tracker="kalman")}
     block = int(0.1 * fs)
-    stream_blocks(loc, (audio[:, i : i + block] for i in range(0, audio.shape[1], block)))
-    print(f"audio {duration_s:.0f} s, {array.n_mics} mics, {fs} Hz, {ms.method}, "
-          f"windows {ms.windows.window_s}/{ms.windows.fine_window_s} s every {ms.windows.hop_s} s")
-    print(f"batch pipeline : {1000 * batch_s / duration_s:7.1f} ms CPU per s of audio")
-    print(f"streaming      : {1000 * loc.compute_s / duration_s:7.1f} ms CPU per s of audio "
-          f"(0.1 s blocks)")
+    duration = audio.shape[1] / fs
+    print(f"simulated meeting {duration:.0f} s, {console.array.n_mics} mics, {fs} Hz, "
+          f"{console.method}, windows {console.windows.window_s} s every "
+          f"{console.windows.hop_s} s, 0.1 s blocks")
+    for label, pipeline in setups.items():
+        def stream(p: Pipeline = pipeline) -> StreamingLocator:
+            locator = StreamingLocator(p)
+            stream_blocks(locator, (audio[:, i : i + block] for i in range(0, audio.shape[1], block)))
+            return locator
+
+        stream()  # warm up (compiled kernels, FFT plans)
+        locator_cpu = min(stream().compute_s for _ in range(args.repeat))
+        batch = cpu_s(lambda p=pipeline: p.run(audio), args.repeat)
+        print(f"{label:30s} streaming {1000 * locator_cpu / duration:6.1f} ms CPU per s "
+              f"({100 * locator_cpu / duration:4.1f} % of a core); batch "
+              f"{1000 * batch / duration:6.1f} ms per s")
     return 0
 
 

@@ -49,12 +49,19 @@ def butter_lowpass_sos(order: int, cutoff_hz: float, fs_hz: float) -> FloatArray
     return sos
 
 
-@njit(cache=True, error_model="numpy")
 def sosfilt(sos: FloatArray, x: FloatArray) -> FloatArray:
     """Filter ``x`` (n,) through second-order sections from rest (``scipy.signal.sosfilt``:
     transposed direct form II, the same operations)."""
+    return sosfilt_state(sos, np.asarray(x, dtype=float), np.zeros((sos.shape[0], 2)))[0]
+
+
+@njit(cache=True, error_model="numpy")
+def sosfilt_state(sos: FloatArray, x: FloatArray, state: FloatArray
+                  ) -> tuple[FloatArray, FloatArray]:
+    """:func:`sosfilt` continuing from ``state`` (n_sections, 2); returns the output and the
+    state after the last sample (filtering in pieces gives the whole signal's samples)."""
     n_sections = sos.shape[0]
-    state = np.zeros((n_sections, 2))
+    state = state.copy()
     y = np.empty_like(x)
     for n in range(x.size):
         value = x[n]
@@ -64,7 +71,7 @@ def sosfilt(sos: FloatArray, x: FloatArray) -> FloatArray:
             state[s, 1] = sos[s, 2] * value - sos[s, 5] * out
             value = out
         y[n] = value
-    return y
+    return y, state
 
 
 def _extended(x: FloatArray, size: int, origin: int) -> FloatArray:

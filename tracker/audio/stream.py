@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,7 +43,7 @@ from tracker.audio.head import MAX_SWEEP_RAD, HeadPoses, frame_to_base, map_grid
 from tracker.audio.map_tracking import MapTracker
 from tracker.audio.pipeline import FrameEstimate, Pipeline
 from tracker.audio.tracking import TalkerTracker, TrackPoint
-from tracker.audio.vad import SpeechDetector
+from tracker.audio.vad import SpeechDetector, StreamingSpeechDetector
 from tracker.errors import ConfigError, DataError
 from tracker.targets import Target
 
@@ -109,10 +109,14 @@ class StreamingLocator:
         self._n_hop = int(round(w.hop_s * fs))
         self._n_fine = int(round(w.fine_window_s * fs)) if w.fine_window_s is not None else 0
         self._detector = SpeechDetector(fs, pipeline.vad)
-        # VAD context: history for the trailing noise floor and smoothing, look-ahead for the
-        # decision on a window's last frames (samples).
+        # The speech detector measures each of its frames once as blocks arrive; it keeps the
+        # history its decisions need (noise floor, smoothing) and decides a window once the
+        # look-ahead after its end has arrived (samples).
+        self._speech = StreamingSpeechDetector(self._detector)
         self._vad_history = self._detector.history_samples
         self.lookahead = self._detector.lookahead_samples
+        # The localizer's STFT frames, each computed once and shared by the windows holding it.
+        self._stft = pipeline.new_frames()
         fine_s, short_s = w.fine_window_s, w.window_s
         self._lag_s = pipeline.fine_lag_fraction * 0.5 * (fine_s - short_s) if fine_s else 0.0
         self._separation_rad = float(talker_separation_rad)
@@ -170,6 +174,7 @@ class StreamingLocator:
             centre_s = (self.samples_in + 0.5 * block.shape[1]) / self.fs_hz
             self.head_poses.add(centre_s, float(head_pan_rad), float(head_tilt_rad))
         self._buf = np.concatenate([self._buf, block], axis=1)
+        self._speech.push(block.mean(axis=0))
         return self._run(final=False)
 
     def finish(self) -> list[StreamTarget]:
@@ -198,26 +203,17 @@ class StreamingLocator:
         return out
 
     def _frames(self, ready: list[int], total: int) -> list[StreamTarget]:
-        fs, hop_v = self.fs_hz, self._detector.hop
-        first_start = ready[0] * self._n_hop
-        seg_lo = max(0, first_start - self._vad_history)
-        seg_lo -= seg_lo % hop_v  # VAD frames on the same grid as the batch run
-        seg_lo = max(seg_lo, self._buf_start)
-        seg = self._buf[:, seg_lo - self._buf_start : total - self._buf_start]
-        feats = self._detector.features(seg.mean(axis=0))
-        # Absolute frame times computed as the batch run does (same floats at the edges).
-        first_frame = seg_lo // hop_v
-        times = ((np.arange(feats.times_s.size) + first_frame) * hop_v
-                 + self._detector.frame / 2) / fs
-        feats = replace(feats, times_s=times)
+        fs = self.fs_hz
+        starts = np.asarray(ready, dtype=np.int64) * self._n_hop
+        speech = self._detector.windows_are_speech(self._speech.features(), starts / fs,
+                                                   (starts + self._n_win) / fs)
+        frames = self.pipeline.estimate_windows(self._buf, self._buf_start, starts, speech,
+                                                self._stft)
         out = []
-        for k in ready:
-            start = k * self._n_hop
+        for start, frame in zip(starts.tolist(), frames, strict=True):
             end = start + self._n_win
-            start_s, end_s = start / fs, end / fs
-            speech = self._detector.window_is_speech(feats, start_s, end_s)
-            frame = self._estimate(start, end, speech)
-            frame = replace(frame, t_s=0.5 * (start_s + end_s), end_s=end_s)
+            if self.head_poses is not None:
+                frame = self._to_base(frame, start, end)
             if self.keep_frames:
                 self.frames.append(frame)
             point = self._step(frame)
@@ -230,22 +226,6 @@ class StreamingLocator:
     def _window(self, lo: int, hi: int) -> FloatArray:
         lo = max(lo, 0)
         return self._buf[:, lo - self._buf_start : hi - self._buf_start]
-
-    def _estimate(self, start: int, end: int, speech: bool) -> FrameEstimate:
-        p = self.pipeline
-        power_map = None
-        if self._map_tracker is not None:
-            est, power_map = p.locate_with_map(self._window(start, end))
-        else:
-            est = p.localizer.locate(self._window(start, end))
-        fine = None
-        if speech and self._n_fine:
-            fine = p.localizer.locate(self._window(end - self._n_fine, end)).azimuth_rad
-        frame = FrameEstimate(0.0, 0.0, est.azimuth_rad, est.elevation_rad, est.confidence,
-                              speech, fine, power_map)
-        if self.head_poses is None:
-            return frame
-        return self._to_base(frame, start, end)
 
     def _to_base(self, frame: FrameEstimate, start: int, end: int) -> FrameEstimate:
         """A head-frame estimate in the base frame (the head's rotation over each window)."""
@@ -287,10 +267,13 @@ class StreamingLocator:
         return len(self._talkers) - 1
 
     def _trim(self) -> None:
+        """Forget the audio, STFT frames and speech measurements no later window needs."""
         start = self._next * self._n_hop
-        end = start + self._n_win
-        keep = min(start - self._vad_history, end - max(self._n_fine, self._n_win))
-        keep = max(0, keep - self._detector.hop)
+        if self._stft is not None:
+            self._stft.forget_before(self.pipeline.first_sample_needed(start))
+        self._speech.forget_before(start - self._vad_history)
+        # The audio of the next window and of its long window (the head's motion over them).
+        keep = max(0, start + self._n_win - max(self._n_fine, self._n_win))
         if keep > self._buf_start:
             self._buf = self._buf[:, keep - self._buf_start :].copy()
             self._buf_start = keep

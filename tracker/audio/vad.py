@@ -7,7 +7,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from tracker.audio.filters import butter_lowpass_sos, running_mean, running_min, sosfilt
+from tracker.audio.filters import (
+    butter_lowpass_sos,
+    running_mean,
+    running_min,
+    sosfilt,
+    sosfilt_state,
+)
 from tracker.errors import ConfigError
 
 FloatArray = NDArray[np.float64]
@@ -95,6 +101,31 @@ class VadFeatures:
     voiced: BoolArray
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class FrameMeasures:
+    """Per-frame measurements the decision is made from; every array has shape (n_frames,):
+    level (dB), harmonicity, share of energy in 200-4000 Hz, pitch period (samples)."""
+
+    level_db: FloatArray
+    harmonicity: FloatArray
+    speech_band: FloatArray
+    period: FloatArray
+
+    def __len__(self) -> int:
+        return int(self.level_db.size)
+
+    def since(self, k: int) -> FrameMeasures:
+        """The measurements from frame ``k`` on."""
+        return FrameMeasures(self.level_db[k:], self.harmonicity[k:], self.speech_band[k:],
+                             self.period[k:])
+
+    @staticmethod
+    def joined(parts: list[FrameMeasures]) -> FrameMeasures:
+        """Consecutive measurements as one."""
+        return FrameMeasures(*(np.concatenate([getattr(p, name) for p in parts])
+                               for name in ("level_db", "harmonicity", "speech_band", "period")))
+
+
 class SpeechDetector:
     """Frame-level voiced-speech detection over a whole signal (vectorised over frames)."""
 
@@ -113,7 +144,15 @@ class SpeechDetector:
         )
         self._sos_low = butter_lowpass_sos(4, min(1000.0, 0.45 * fs_hz), fs_hz)
         freqs = np.fft.rfftfreq(self.nfft, 1.0 / fs_hz)
-        self._band = (freqs >= 200.0) & (freqs <= 4000.0)
+        in_band = np.flatnonzero((freqs >= 200.0) & (freqs <= 4000.0))
+        # A slice, not a mask: summing a masked copy adds in an order that depends on how many
+        # frames there are, so a stream's blocks would round differently from the batch.
+        self._band = slice(int(in_band[0]), int(in_band[-1]) + 1)
+
+    @property
+    def low_pass_sos(self) -> FloatArray:
+        """The harmonicity's 1 kHz low-pass, second-order sections (n_sections, 6)."""
+        return self._sos_low
 
     @property
     def lookahead_samples(self) -> int:
@@ -141,6 +180,11 @@ class SpeechDetector:
         mono = np.asarray(mono, dtype=float)
         if mono.size < self.frame:
             mono = np.pad(mono, (0, self.frame - mono.size))
+        return self.decide(self.measure(mono, sosfilt(self._sos_low, mono)))
+
+    def measure(self, mono: FloatArray, low: FloatArray) -> FrameMeasures:
+        """Per-frame measurements of every whole frame of ``mono`` (n_samples,) and of its
+        1 kHz low-pass ``low`` (the same samples filtered from the signal's start)."""
         n_frames = 1 + (mono.size - self.frame) // self.hop
         index = np.arange(n_frames)[:, None] * self.hop + np.arange(self.frame)[None, :]
         frames = mono[index] * self._window
@@ -148,8 +192,8 @@ class SpeechDetector:
         total = spectrum.sum(axis=-1) + 1e-20
         speech_band = spectrum[:, self._band].sum(axis=-1) / total
         level_db = 10 * np.log10(np.mean(frames**2, axis=-1) + 1e-20)
-        low = sosfilt(self._sos_low, mono)[index] * self._window
-        acf = np.fft.irfft(np.abs(np.fft.rfft(low, self.nfft, axis=-1)) ** 2, axis=-1)
+        acf = np.fft.irfft(np.abs(np.fft.rfft(low[index] * self._window, self.nfft, axis=-1)) ** 2,
+                           axis=-1)
         acf = acf[:, : self.frame] / (acf[:, :1] + 1e-20) / self._window_acf[None, : self.frame]
         in_range = acf[:, self._lags]
         harmonicity = np.clip(in_range.max(axis=-1), 0.0, 1.0)
@@ -158,7 +202,14 @@ class SpeechDetector:
         padded = acf[:, self._lags[0] - 1 : self._lags[-1] + 2]
         local_peak = (in_range >= padded[:, :-2]) & (in_range >= padded[:, 2:])
         near_top = in_range >= 0.85 * in_range.max(axis=-1, keepdims=True)
-        period = self._lags[np.argmax(local_peak & near_top, axis=-1)]
+        period = self._lags[np.argmax(local_peak & near_top, axis=-1)].astype(float)
+        return FrameMeasures(level_db, harmonicity, speech_band, period)
+
+    def decide(self, m: FrameMeasures, first_frame: int = 0) -> VadFeatures:
+        """The per-frame decision on consecutive frames' measurements (frame ``first_frame``
+        of the signal first: it sets the times)."""
+        level_db, harmonicity = m.level_db, m.harmonicity
+        n_frames = level_db.size
         floor_frames = max(1, int(round(self.settings.floor_window_s / self.settings.hop_s)))
         s = self.settings
         if s.causal:  # trailing 5-frame mean
@@ -173,18 +224,18 @@ class SpeechDetector:
         modulation_db = smoothed - running_min(smoothed, half, origin=(half - 1) // 2)
         pitched = harmonicity >= s.harmonicity_min
         if s.causal:
-            pitched &= ~self._steady_pitch(period.astype(float), pitched)
+            pitched &= ~self._steady_pitch(m.period, pitched)
         else:
             dip_after = smoothed - running_min(smoothed, half, origin=-(half // 2))
             modulation_db = np.minimum(modulation_db, dip_after)
         voiced = (
             (level_db >= floor_db + s.level_above_floor_db)
             & pitched
-            & (speech_band >= s.speech_band_min)
+            & (m.speech_band >= s.speech_band_min)
             & (modulation_db >= s.modulation_min_db)
         )
-        times = (np.arange(n_frames) * self.hop + self.frame / 2) / self.fs_hz
-        return VadFeatures(times, level_db, floor_db, harmonicity, speech_band, modulation_db,
+        times = ((np.arange(n_frames) + first_frame) * self.hop + self.frame / 2) / self.fs_hz
+        return VadFeatures(times, level_db, floor_db, harmonicity, m.speech_band, modulation_db,
                            voiced)
 
     def _steady_pitch(self, lag: FloatArray, pitched: BoolArray) -> BoolArray:
@@ -216,3 +267,58 @@ class SpeechDetector:
         inside = (features.times_s >= start_s) & (features.times_s < end_s)
         return bool(np.count_nonzero(features.voiced & inside) * self.settings.hop_s
                     >= self.settings.min_voiced_s)
+
+
+class StreamingSpeechDetector:
+    """:meth:`SpeechDetector.features` of a signal that arrives in blocks, measured once.
+
+    Each block is low-passed with the filter's state carried over (the same samples as the
+    whole signal's filtering) and every frame it completes is measured once; the decision is
+    made over the kept frames' measurements, so it costs no FFT of old audio. The caller
+    forgets frames it no longer needs (:meth:`forget_before`; keep the detector's history,
+    :attr:`SpeechDetector.history_samples`, before the earliest window still to decide).
+    """
+
+    def __init__(self, detector: SpeechDetector) -> None:
+        self.detector = detector
+        self._state = np.zeros((detector.low_pass_sos.shape[0], 2))
+        self._mono = np.zeros(0)  # samples of the frame not yet complete
+        self._low = np.zeros(0)
+        self._next_frame = 0  # index of the next frame to measure
+        self._first_kept = 0  # index of the first kept frame
+        self._measures: list[FrameMeasures] = []
+
+    @property
+    def frames_measured(self) -> int:
+        """Frames measured so far (frame ``k`` covers samples ``k * hop .. k * hop + frame``)."""
+        return self._next_frame
+
+    def push(self, mono: FloatArray) -> None:
+        """Add the next samples of the mono signal, shape (n_samples,)."""
+        d = self.detector
+        mono = np.asarray(mono, dtype=float)
+        low, self._state = sosfilt_state(d.low_pass_sos, mono, self._state)
+        self._mono = np.concatenate([self._mono, mono])
+        self._low = np.concatenate([self._low, low])
+        if self._mono.size >= d.frame:
+            n = 1 + (self._mono.size - d.frame) // d.hop
+            self._measures.append(d.measure(self._mono[: (n - 1) * d.hop + d.frame],
+                                            self._low[: (n - 1) * d.hop + d.frame]))
+            self._mono, self._low = self._mono[n * d.hop :], self._low[n * d.hop :]
+            self._next_frame += n
+
+    def forget_before(self, sample: int) -> None:
+        """Drop the measurements of the frames that start before ``sample``."""
+        kept = FrameMeasures.joined(self._measures) if self._measures else None
+        drop = min(max(0, -(-sample // self.detector.hop) - self._first_kept),
+                   len(kept) if kept is not None else 0)
+        if kept is not None and drop:
+            self._measures = [kept.since(drop)]
+            self._first_kept += drop
+
+    def features(self) -> VadFeatures:
+        """Features of the kept frames (absolute times, from the signal's first sample)."""
+        if not self._measures:
+            empty = np.zeros(0)
+            return VadFeatures(empty, empty, empty, empty, empty, empty, np.zeros(0, dtype=bool))
+        return self.detector.decide(FrameMeasures.joined(self._measures), self._first_kept)

@@ -142,3 +142,32 @@ def test_speech_over_a_running_fan_is_still_speech():
 def test_bad_settings_are_config_errors():
     with pytest.raises(ConfigError, match="pitch_range_hz"):
         VadSettings(pitch_range_hz=(500.0, 100.0))
+
+
+@pytest.mark.parametrize("block", [160, 1234, 4000])
+def test_the_streaming_detector_measures_each_frame_once_and_decides_as_the_batch(block):
+    """Speed (issue 12): a stream no longer re-measures 3 s of audio at every block; block by
+    block, each frame is measured once (the low-pass state carried over) and the decisions are
+    the whole signal's, also after forgetting frames older than the detector's history."""
+    from tracker.audio.vad import StreamingSpeechDetector
+
+    rng = np.random.default_rng(3)
+    mono = np.concatenate([_room_noise(rng), synthetic_speech(DURATION_S, FS_HZ, seed=2).samples
+                           + _room_noise(rng)])
+    detector = SpeechDetector(FS_HZ)
+    batch = detector.features(mono)
+    everything, trimmed = StreamingSpeechDetector(detector), StreamingSpeechDetector(detector)
+    for lo in range(0, mono.size, block):
+        everything.push(mono[lo : lo + block])
+        trimmed.push(mono[lo : lo + block])
+        n = trimmed.frames_measured
+        recent = trimmed.features()
+        if recent.times_s.size:
+            k = np.searchsorted(batch.times_s, recent.times_s[0])
+            np.testing.assert_array_equal(recent.voiced[-20:], batch.voiced[k : k + len(recent.voiced)][-20:])
+        trimmed.forget_before(n * detector.hop - detector.history_samples)
+    whole = everything.features()
+    for name in ("times_s", "level_db", "floor_db", "harmonicity", "speech_band", "modulation_db",
+                 "voiced"):
+        np.testing.assert_array_equal(getattr(whole, name), getattr(batch, name), err_msg=name)
+    assert batch.voiced.any() and not batch.voiced.all()
