@@ -153,21 +153,22 @@ def meeting_pipeline(fs_hz: int, array: Any = None) -> Pipeline:
     """The meeting's localizer, windows and tracker settings for audio at ``fs_hz``.
 
     The camera and its head sit on the wall, so talkers are in -90°..90° of the base frame
-    (no mirror image of the wall) and the map tracker frames them over that range. A
-    room-mounted array under the camera searches just that range; a head-mounted one turns
-    away from the wall with the camera, so it searches every azimuth of its own frame and each
-    window's map is turned into the base range with the head's angles.
+    (no mirror image of the wall), within the array file's field of view, and the map tracker
+    frames them over that range. A room-mounted array under the camera searches just that
+    range; a head-mounted one turns away from the wall with the camera, so it searches every
+    azimuth of its own frame and each window's map is turned into the base range with the
+    head's angles.
     """
     from tracker.audio.pipeline import Pipeline, choose_tracker
     from tracker.scenarios.meeting import MeetingSettings
 
     settings = MeetingSettings()
     array = array if array is not None else load_meeting_array()
-    room_range = (-np.pi / 2, np.pi / 2)
+    room_range = array.field_of_view.narrowed((-np.pi / 2, np.pi / 2), array.name).azimuth_rad
     options = {} if array.head_mounted else {"azimuth_range_rad": room_range}
     return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
                     localizer_options=options,
-                    tracker=choose_tracker(settings.method, array, room_range),
+                    tracker=choose_tracker(settings.method),
                     map_tracking=settings.map_tracking,
                     base_azimuth_range_rad=room_range if array.head_mounted else None)
 

@@ -48,7 +48,7 @@ def setups(array: MicArray, fs_hz: int) -> dict[str, Pipeline]:
     """The pipelines of ``locate``, ``locate --front-only`` and the console."""
     def pipe(window_s: float, front: bool) -> Pipeline:
         options = {"azimuth_range_rad": FRONT} if front else {}
-        tracker = choose_tracker("srp_phat", array, FRONT if front else None)
+        tracker = choose_tracker("srp_phat")
         return Pipeline(array, fs_hz, "srp_phat", WindowSettings(window_s, 0.1, 1.5),
                         localizer_options=options, tracker=tracker)
 

@@ -68,8 +68,13 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=60.0)
     parser.add_argument("--cache", type=Path, default=None)
     parser.add_argument("--audio-cache", type=Path, default=None)
+    parser.add_argument("--no-majority", action="store_true",
+                        help="both trackers without their majority rules (for comparison)")
     args = parser.parse_args()
     base = replace(MeetingSettings(), tracker="map")
+    if args.no_majority:
+        base = replace(base, tracking=replace(base.tracking, majority_guard=False),
+                       map_tracking=replace(base.map_tracking, majority_guard=False))
     trackers = {"kalman": replace(base, tracker="kalman"), "map": base}
     rows: dict[str, list[tuple[float, ...]]] = {name: [] for name in trackers}
     print("seed tracker  on_target_%  frame_s  switches/changes  jitter_deg | lost % of speech: "

@@ -112,8 +112,9 @@ def running_min(x: FloatArray, size: int, origin: int = 0) -> FloatArray:
     return np.asarray(windows.min(axis=-1))
 
 
-def gaussian_blur(values: FloatArray, sigma: float) -> FloatArray:
-    """``scipy.ndimage.gaussian_filter1d(values, sigma, axis=-1, mode="nearest")``.
+def gaussian_blur(values: FloatArray, sigma: float, wrap: bool = False) -> FloatArray:
+    """``scipy.ndimage.gaussian_filter1d(values, sigma, axis=-1, mode="nearest")`` (``mode="wrap"``
+    with ``wrap``: the last axis is a circle).
 
     The kernel reaches ``int(4 sigma + 0.5)`` samples either side and sums to one; shape of
     ``values`` (..., n).
@@ -123,8 +124,14 @@ def gaussian_blur(values: FloatArray, sigma: float) -> FloatArray:
     weights = np.exp(-0.5 / sigma**2 * x**2)
     weights = weights / weights.sum()
     values = np.asarray(values, dtype=float)
-    padded = np.concatenate([np.repeat(values[..., :1], radius, axis=-1), values,
-                             np.repeat(values[..., -1:], radius, axis=-1)], axis=-1)
+    if wrap:
+        turns = -(-radius // values.shape[-1])  # whole turns needed either side
+        circle = np.concatenate([values] * (2 * turns + 1), axis=-1)
+        start = turns * values.shape[-1] - radius
+        padded = circle[..., start : start + values.shape[-1] + 2 * radius]
+    else:
+        padded = np.concatenate([np.repeat(values[..., :1], radius, axis=-1), values,
+                                 np.repeat(values[..., -1:], radius, axis=-1)], axis=-1)
     n = values.shape[-1]
     out = values * weights[radius]
     for j in range(radius, 0, -1):  # symmetric pairs, farthest first, as scipy sums them

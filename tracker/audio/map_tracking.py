@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.audio.filters import gaussian_blur
-from tracker.audio.tracking import TrackPoint, back_and_forth_midpoint
+from tracker.audio.tracking import TrackPoint, WindowVotes, back_and_forth_midpoint
 from tracker.errors import ConfigError, DataError
 
 FloatArray = NDArray[np.float64]
@@ -88,6 +88,7 @@ class MapTrackerSettings:
     wide_window_s: float = 20.0
     wide_release_s: float = 6.0
     wide_azimuth_rad: float | None = None
+    majority_guard: bool = True
 
     def __post_init__(self) -> None:
         fractions = ("static_prior", "rate_mixing", "birth_share", "memory_share", "switch_mass",
@@ -116,15 +117,22 @@ class _Seat:
 
     positions_rad: list[float]
     last_t_s: float
+    circular: bool = False  # positions are kept on the first one's turn; the median is wrapped
     azimuth_rad: float = field(init=False)  # the median of positions_rad
 
     def __post_init__(self) -> None:
-        self.azimuth_rad = float(np.median(self.positions_rad))
+        self.azimuth_rad = self._median()
+
+    def _median(self) -> float:
+        median = float(np.median(self.positions_rad))
+        return _wrap(median) if self.circular else median
 
     def add(self, t_s: float, azimuth_rad: float) -> None:
         """Another tracked position (the oldest beyond the last ``_SEAT_POSITIONS`` is dropped)."""
+        if self.circular:  # on the turn of the seat's positions
+            azimuth_rad = self.positions_rad[-1] + _wrap(azimuth_rad - self.positions_rad[-1])
         self.positions_rad = [*self.positions_rad[-(_SEAT_POSITIONS - 1):], azimuth_rad]
-        self.azimuth_rad = float(np.median(self.positions_rad))
+        self.azimuth_rad = self._median()
         self.last_t_s = t_s
 
 
@@ -137,10 +145,16 @@ class MapTracker:
     azimuth_rad : ndarray, shape (n_map,)
         The maps' azimuth grid, evenly spaced and increasing.
     settings : MapTrackerSettings
+    circular : bool
+        The grid is the full circle (``n_map`` steps make a turn): it wraps at ±180°, so a
+        talker walking behind the array is followed across it (an array on a table or the
+        ceiling). Otherwise it is a line whose ends are the field of view's edges, which the
+        shots never leave.
     """
 
     azimuth_rad: FloatArray
     settings: MapTrackerSettings = field(default_factory=MapTrackerSettings)
+    circular: bool = False
     _posterior: FloatArray = field(init=False)
     _rate_prior: FloatArray = field(init=False)
     _rates: FloatArray = field(init=False)
@@ -161,6 +175,7 @@ class MapTracker:
     _walked: bool = False  # the current talker has walked during this turn
     _confidences: list[tuple[float, float]] = field(default_factory=list)  # speech windows'
     _sorted_confidences: list[float] = field(default_factory=list)  # the same, sorted
+    _votes: WindowVotes = field(init=False)  # speech windows' map peaks
 
     def __post_init__(self) -> None:
         az = np.asarray(self.azimuth_rad, dtype=float)
@@ -170,7 +185,11 @@ class MapTracker:
                               f"(got {az.size} points)")
         self.azimuth_rad = az
         self._step_rad = float(steps[0])
+        if self.circular and abs(az.size * self._step_rad - 2.0 * np.pi) > 1e-6:
+            raise ConfigError(f"a circular map grid must make a full turn ({az.size} cells of "
+                              f"{np.rad2deg(self._step_rad):.3f}° do not)")
         s = self.settings
+        self._votes = WindowVotes(s.gate_rad)
         self._rates = np.asarray(s.rates_rad_s, dtype=float)
         moving = self._rates != 0.0
         prior = np.where(moving, (1.0 - s.static_prior) / max(1, int(moving.sum())), s.static_prior)
@@ -195,6 +214,7 @@ class MapTracker:
             self._speech_run_t_s = t_s if gap > s.turn_gap_s else self._speech_run_t_s
             if gap > s.coast_s:  # a talker who paused is not still walking
                 self._history, self._walked = [], False
+            self._votes.add(t_s, float(self.azimuth_rad[int(np.argmax(p))]))
             self._update(t_s, p, s.sharpness * self._weight(t_s, confidence))
             self._decide(t_s, elevation_rad, floor_open=gap > s.pause_tolerance_s)
             self._last_speech_t_s = t_s
@@ -231,7 +251,7 @@ class MapTracker:
         if dt <= 0.0:
             return
         if moving:
-            post = _shift_rows(post, self._rates * dt / self._step_rad)
+            post = _shift_rows(post, self._rates * dt / self._step_rad, self.circular)
             mix = 1.0 - (1.0 - s.rate_mixing) ** (dt / 0.1)
         else:  # pause: the walker stops, every hypothesis falls back to the rate prior
             mix = 1.0
@@ -244,7 +264,7 @@ class MapTracker:
         post = (1.0 - mix) * post + mix * self._rate_prior[:, None] * marginal[None, :]
         sigma = s.diffusion_rad_per_sqrt_s * np.sqrt(dt) / self._step_rad
         if sigma > 1e-3:
-            post = gaussian_blur(post, sigma)
+            post = gaussian_blur(post, sigma, wrap=self.circular)
         self._posterior = post / post.sum()
 
     def _keep_walking(self, post: FloatArray, dt: float) -> FloatArray:
@@ -255,7 +275,7 @@ class MapTracker:
         if talker is None or s.walker_mix <= 0.0 or s.walker_rate_std_rad_s <= 0.0 or not (
                 self._walked or abs(rate) >= s.moving_rate_rad_s):
             return post
-        near = np.abs(self.azimuth_rad - talker) <= 2.0 * s.gate_rad
+        near = np.abs(self._offset(self.azimuth_rad, talker)) <= 2.0 * s.gate_rad
         own = np.exp(-0.5 * ((self._rates - rate) / s.walker_rate_std_rad_s) ** 2)
         mix = 1.0 - (1.0 - s.walker_mix) ** (dt / 0.1)
         post = post.copy()
@@ -281,10 +301,10 @@ class MapTracker:
         # Seats near a talker who walked this turn are left out: they would hold her back.
         current = self._talker_rad
         seats = [seat.azimuth_rad for seat in self._seats if not self._walked or current is None
-                 or abs(seat.azimuth_rad - current) > s.gate_rad]
+                 or abs(self._offset(seat.azimuth_rad, current)) > s.gate_rad]
         if not seats or s.memory_share <= 0.0:
             return uniform
-        bumps = sum(np.exp(-0.5 * ((az - a) / s.memory_std_rad) ** 2) for a in seats)
+        bumps = sum(np.exp(-0.5 * (self._offset(az, a) / s.memory_std_rad) ** 2) for a in seats)
         bumps = np.asarray(bumps) / np.sum(bumps)
         return np.asarray((1.0 - s.memory_share) * uniform + s.memory_share * bumps)
 
@@ -292,21 +312,38 @@ class MapTracker:
         """Posterior probability of each azimuth cell (rates summed); shape (n_map,)."""
         return np.asarray(self._posterior.sum(axis=0))
 
+    def _offset(self, a: FloatArray | float, b: float) -> FloatArray:
+        """``a - b`` (rad), the short way round on a circular grid."""
+        d = np.asarray(a, dtype=float) - b
+        return np.asarray(np.remainder(d + np.pi, 2.0 * np.pi) - np.pi) if self.circular else d
+
+    def _distance(self, a: float, b: float) -> float:
+        return abs(float(self._offset(a, b)))
+
+    def _on_grid(self, azimuth_rad: float) -> float:
+        """An azimuth wrapped (circular grid) or held between the grid's ends (a line)."""
+        if self.circular:
+            return _wrap(azimuth_rad)
+        return min(max(azimuth_rad, float(self.azimuth_rad[0])), float(self.azimuth_rad[-1]))
+
     # -- the camera operator ---------------------------------------------------------------
 
     def _mass_near(self, marginal: FloatArray, centre_rad: float) -> tuple[float, float]:
         """Posterior mass within the gate of ``centre_rad`` and the local peak there (refined
         by a parabola through the best cell and its neighbours)."""
-        near = np.flatnonzero(np.abs(self.azimuth_rad - centre_rad) <= self.settings.gate_rad)
+        near = np.flatnonzero(np.abs(self._offset(self.azimuth_rad, centre_rad))
+                              <= self.settings.gate_rad)
         mass = float(marginal[near].sum())
         if mass <= 0.0:
             return 0.0, centre_rad
         k = int(near[np.argmax(marginal[near])])
-        if 0 < k < marginal.size - 1:
-            lo, mid, hi = np.log(np.maximum(marginal[k - 1 : k + 2], 1e-300))
+        n = marginal.size
+        if 0 < k < n - 1 or self.circular:
+            lo, mid, hi = np.log(np.maximum(marginal[[(k - 1) % n, k, (k + 1) % n]], 1e-300))
             curvature = lo - 2.0 * mid + hi
             offset = 0.5 * (lo - hi) / curvature if curvature < 0 else 0.0
-            return mass, float(self.azimuth_rad[k] + np.clip(offset, -0.5, 0.5) * self._step_rad)
+            peak = float(self.azimuth_rad[k] + np.clip(offset, -0.5, 0.5) * self._step_rad)
+            return mass, _wrap(peak) if self.circular else peak
         return mass, float(self.azimuth_rad[k])
 
     def _decide(self, t_s: float, elevation_rad: float | None, floor_open: bool) -> None:
@@ -317,14 +354,14 @@ class MapTracker:
         current = self._talker_rad
         if current is not None:
             mass, local = self._mass_near(marginal, current)
-            if mass >= 0.5 * s.switch_mass or abs(peak - current) <= s.gate_rad:
+            if mass >= 0.5 * s.switch_mass or self._distance(peak, current) <= s.gate_rad:
                 self._follow(t_s, local, elevation_rad)
                 self._candidate = None
                 return
         if peak_mass < s.switch_mass:
             self._candidate = None
             return
-        if self._candidate is None or abs(self._candidate[1] - peak_at) > s.gate_rad:
+        if self._candidate is None or self._distance(self._candidate[1], peak_at) > s.gate_rad:
             self._candidate = (t_s, peak_at)
         self._candidate = (self._candidate[0], peak_at)
         # A voice that starts a turn (just after a gap) is taken at once; one that appears
@@ -332,7 +369,10 @@ class MapTracker:
         turn_start = self._candidate[0] - self._speech_run_t_s <= s.onset_s
         if not turn_start and t_s - self._candidate[0] < s.reaction_time_s - 1e-9:
             return
-        if current is not None and abs(peak_at - current) <= s.reacquire_rad:
+        if current is not None and s.majority_guard and self._votes.outvoted(
+                peak_at, current, self._candidate[0], t_s):
+            return
+        if current is not None and self._distance(peak_at, current) <= s.reacquire_rad:
             self._start_talker(t_s, peak_at, elevation_rad)  # the same talker found again
             return
         if current is None or floor_open or t_s - self._last_switch_t_s >= s.min_hold_s:
@@ -349,8 +389,8 @@ class MapTracker:
         s = self.settings
         if self._talker_rad is not None and self._history:
             reach = s.max_rate_rad_s * (t_s - self._history[-1][0]) + self._step_rad
-            azimuth_rad = self._talker_rad + float(
-                np.clip(azimuth_rad - self._talker_rad, -reach, reach))
+            azimuth_rad = self._on_grid(self._talker_rad + float(
+                np.clip(self._offset(azimuth_rad, self._talker_rad), -reach, reach)))
         self._talker_rad = azimuth_rad
         self._history = [h for h in self._history if t_s - h[0] <= s.rate_window_s]
         self._history.append((t_s, azimuth_rad))
@@ -360,7 +400,7 @@ class MapTracker:
             self._walked = True
             start = self._history[0][1]
             self._seats = [seat for seat in self._seats
-                           if abs(seat.azimuth_rad - start) > s.gate_rad]
+                           if self._distance(seat.azimuth_rad, start) > s.gate_rad]
         elif not self._walked:
             self._remember(t_s, azimuth_rad)
         if elevation_rad is not None:
@@ -373,18 +413,20 @@ class MapTracker:
         if len(self._history) < 4 or span_s < 0.5 * self.settings.rate_window_s:
             return 0.0
         t, a = np.array(self._history).T
+        if self.circular:
+            a = np.unwrap(a)
         t = t - t.mean()
         return float(t @ (a - a.mean()) / (t @ t))
 
     def _remember(self, t_s: float, azimuth_rad: float) -> None:
         """A still talker's position joins the nearest seat within the gate (or starts one)."""
         near = [seat for seat in self._seats
-                if abs(seat.azimuth_rad - azimuth_rad) <= self.settings.gate_rad]
+                if self._distance(seat.azimuth_rad, azimuth_rad) <= self.settings.gate_rad]
         if near:
-            seat = min(near, key=lambda x: abs(x.azimuth_rad - azimuth_rad))
+            seat = min(near, key=lambda x: self._distance(x.azimuth_rad, azimuth_rad))
             seat.add(t_s, azimuth_rad)
         else:
-            self._seats.append(_Seat([azimuth_rad], t_s))
+            self._seats.append(_Seat([azimuth_rad], t_s, self.circular))
 
     def _start_talker(self, t_s: float, azimuth_rad: float, elevation_rad: float | None) -> None:
         self._talker_rad, self._target_rad, self._talker_rate_rad_s = azimuth_rad, azimuth_rad, 0.0
@@ -398,7 +440,8 @@ class MapTracker:
             return
         mid = back_and_forth_midpoint(self._switches, s.gate_rad)
         if mid is not None:
-            self._wide_rad = s.wide_azimuth_rad if s.wide_azimuth_rad is not None else mid
+            self._wide_rad = s.wide_azimuth_rad if s.wide_azimuth_rad is not None else (
+                self._on_grid(mid))
 
     def _target(self, t_s: float) -> TrackPoint:
         s = self.settings
@@ -413,22 +456,32 @@ class MapTracker:
             self._target_rad = talker
         rate = self._talker_rate_rad_s
         if abs(rate) >= s.moving_rate_rad_s:
-            ahead = talker + rate * s.lead_s
-            if abs(ahead - self._target_rad) > s.moving_deadband_rad:
+            ahead = self._on_grid(talker + rate * s.lead_s)
+            if self._distance(ahead, self._target_rad) > s.moving_deadband_rad:
                 self._target_rad = ahead
-        elif abs(talker - self._target_rad) > s.deadband_rad:
+        elif self._distance(talker, self._target_rad) > s.deadband_rad:
             self._target_rad = talker
         return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)
 
 
-def _shift_rows(rows: FloatArray, cells: FloatArray) -> FloatArray:
-    """Row ``k`` of ``rows`` (n_rows, n) moved by ``cells[k]`` cells (linear interpolation; the
-    edges hold): ``np.interp(arange(n) - cells[k], arange(n), rows[k])`` for every row at once,
-    with np.interp's formula."""
+def _shift_rows(rows: FloatArray, cells: FloatArray, circular: bool = False) -> FloatArray:
+    """Row ``k`` of ``rows`` (n_rows, n) moved by ``cells[k]`` cells (linear interpolation):
+    ``np.interp(arange(n) - cells[k], arange(n), rows[k])`` for every row at once, with
+    np.interp's formula; the edges hold, or the rows wrap round when ``circular``."""
     n = rows.shape[1]
     x = np.arange(n, dtype=float)[None, :] - cells[:, None]
-    j = np.clip(np.floor(x), 0, n - 2).astype(np.int64)
     k = np.arange(rows.shape[0])[:, None]
+    if circular:
+        x = np.remainder(x, n)
+        j = np.minimum(np.floor(x), n - 1).astype(np.int64)
+        left, right = rows[k, j], rows[k, (j + 1) % n]
+        return np.asarray((right - left) * (x - j) + left)
+    j = np.clip(np.floor(x), 0, n - 2).astype(np.int64)
     left, right = rows[k, j], rows[k, j + 1]
     inside = (right - left) * (x - j) + left
     return np.asarray(np.where(x <= 0.0, rows[:, :1], np.where(x >= n - 1, rows[:, -1:], inside)))
+
+
+def _wrap(angle_rad: float) -> float:
+    """An angle in [-pi, pi)."""
+    return float(np.remainder(angle_rad + np.pi, 2.0 * np.pi) - np.pi)

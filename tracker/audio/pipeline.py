@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tracker.audio.array import MicArray
+from tracker.audio.array import FieldOfView, MicArray
 from tracker.audio.localizers import DEFAULT_LOCALIZER, Localizer, make_localizer
 from tracker.audio.localizers.base import DirectionEstimate, direction_grid
 from tracker.audio.localizers.frames import StftFrames
@@ -106,6 +106,7 @@ class LocateResult:
 
 
 MAP_STEP_RAD = float(np.deg2rad(1.0))
+_MAP_EL_STEP_RAD = float(np.deg2rad(5.0))
 
 
 @dataclass
@@ -148,7 +149,9 @@ class Pipeline:
     localizer: Localizer = field(init=False)
     map_azimuth_rad: FloatArray = field(init=False)
     steer_azimuth_rad: FloatArray = field(init=False)
+    view: FieldOfView = field(init=False)
     _map_grid: SrpGrid | None = field(init=False, default=None)
+    _map_elevations: FloatArray = field(init=False)
 
     def __post_init__(self) -> None:
         if self.tracker not in TRACKERS:
@@ -159,30 +162,76 @@ class Pipeline:
         if self.base_azimuth_range_rad is not None and not self.array.head_mounted:
             raise ConfigError(f"base_azimuth_range_rad applies to head-mounted arrays; {self.array.name} "
                               "is room-mounted: its localizer's azimuth_range_rad is in the base frame")
+        self.view = self._tracking_view()
         if self.tracker == "map":
             self._build_map_grids()
 
+    def _tracking_view(self) -> FieldOfView:
+        """Where talkers are tracked, in the base frame: the localizer's azimuth range for an
+        array fixed to the base (``azimuth_range_rad``, else the array's field of view), the
+        base range for a head-mounted one (``base_azimuth_range_rad``, else its field of view)."""
+        fov = self.array.field_of_view
+        if self.array.head_mounted:
+            base = self.base_azimuth_range_rad
+            if base is None:
+                return fov
+            lo, hi = base
+            if not (-2 * np.pi <= lo < hi <= lo + 2 * np.pi and hi <= 2 * np.pi):
+                raise ConfigError(f"base_azimuth_range_rad={base} must be increasing, within ±2π "
+                                  "and at most a full turn")
+            return FieldOfView(base, fov.elevation_rad)
+        search = self.localizer_options.get("azimuth_range_rad")
+        if search is None:
+            if not self.array.resolves_front_back and fov.full_circle:
+                return FieldOfView((-np.pi / 2, np.pi / 2), fov.elevation_rad)
+            return fov
+        return FieldOfView((float(search[0]), float(search[1])), fov.elevation_rad)
+
+    @property
+    def map_circular(self) -> bool:
+        """True when the map tracker's grid is the full circle (it wraps at ±180°)."""
+        return self.tracker == "map" and self.view.full_circle
+
     def _build_map_grids(self) -> None:
         """The 1° azimuth grids: the maps' steering grid (the localizer's azimuth range, in
-        the array's frame) and the tracker's base-frame grid (the same for a room-mounted array)."""
+        the array's frame) and the tracker's base-frame grid (the same for a room-mounted array:
+        a line over a limited view, a circle over the full one).
+
+        The maps are steered at zero elevation, or, when the array's view lies on one side of
+        the horizontal (a ceiling's, a table's for an array with height), at the best of the
+        localizer's elevations for each azimuth.
+        """
         if not isinstance(self.localizer, SrpPhat):
             raise ConfigError(f"the map tracker needs the srp_phat localizer, not {self.method!r}")
         az_range = self.localizer_options.get("azimuth_range_rad")
         steer_az, _ = direction_grid(self.array, MAP_STEP_RAD, np.pi, az_range)
         self.steer_azimuth_rad = self.map_azimuth_rad = np.unique(steer_az)
         if self.array.head_mounted:
-            base = self.base_azimuth_range_rad
-            if base is None:
-                raise ConfigError(f"the map tracker with a head-mounted array ({self.array.name}) "
-                                  "needs base_azimuth_range_rad, the base-frame range where talkers "
-                                  "can be (its grid is a line, not a circle); or use tracker='kalman'")
-            lo, hi = base
-            if not (-2 * np.pi <= lo < hi <= lo + 2 * np.pi and hi <= 2 * np.pi):
-                raise ConfigError(f"base_azimuth_range_rad={base} must be increasing, within ±2π "
-                                  "and at most a full turn")
-            self.map_azimuth_rad = np.linspace(lo, hi, max(3, int(round((hi - lo) / MAP_STEP_RAD)) + 1))
-        self._map_grid = SrpGrid(self.array, self.fs_hz, self.steer_azimuth_rad,
-                                 np.zeros_like(self.steer_azimuth_rad), self.localizer.settings)
+            lo, hi = self.view.azimuth_rad
+            if self.view.full_circle:
+                self.map_azimuth_rad = np.arange(-np.pi, np.pi - 0.5 * MAP_STEP_RAD, MAP_STEP_RAD)
+            else:
+                self.map_azimuth_rad = np.linspace(lo, hi, max(3, int(round((hi - lo) / MAP_STEP_RAD))
+                                                   + 1))
+        elevations = self.array.elevation_range_rad
+        self._map_elevations = np.zeros(1)
+        if elevations is not None and not elevations[0] <= 0.0 <= elevations[1]:
+            lo, hi = elevations
+            self._map_elevations = np.linspace(lo, hi, max(1, int(round((hi - lo) / _MAP_EL_STEP_RAD)))
+                                               + 1)
+        az_grid, el_grid = np.meshgrid(self.steer_azimuth_rad, self._map_elevations, indexing="ij")
+        self._map_grid = SrpGrid(self.array, self.fs_hz, az_grid.ravel(), el_grid.ravel(),
+                                 self.localizer.settings)
+
+    def _map_response(self, gcc: GccTable) -> FloatArray:
+        """Azimuth maps of GCC tables (one window's, or a stack): the steered response at each
+        steering azimuth, best over the map's elevations; shape (..., n_steer)."""
+        assert self._map_grid is not None
+        response = self._map_grid.response(gcc)
+        n_el = self._map_elevations.size
+        if n_el == 1:
+            return response
+        return np.asarray(response.reshape(*response.shape[:-1], -1, n_el).max(axis=-1))
 
     def locate_with_map(self, frame: FloatArray) -> tuple[DirectionEstimate, FloatArray]:
         """One window's estimate (``localizer.locate``'s) and its azimuth map, one STFT.
@@ -194,7 +243,7 @@ class Pipeline:
         if self._map_grid is None or not isinstance(self.localizer, SrpPhat):
             raise ConfigError("azimuth maps are computed only for tracker='map'")
         estimate, g = self.localizer.locate_with_gcc(frame)
-        return estimate, self._map_grid.response(g)
+        return estimate, self._map_response(g)
 
     @property
     def estimates_fine(self) -> bool:
@@ -326,7 +375,7 @@ class Pipeline:
         fine: list[float | None] = [None] * n_short
         for j, k in enumerate(fine_windows.tolist()):
             fine[k] = float(azimuth[n_short + j])
-        resolves = self.array.resolves_elevation
+        resolves = self.array.sees_elevation
         return [(DirectionEstimate(float(azimuth[k]),
                                    float(elevation[k]) if resolves else None,
                                    float(confidence[k])),
@@ -357,7 +406,7 @@ class Pipeline:
         """Run the talker tracker over frames in time order (fresh tracker each call)."""
         if self.tracker == "map":
             return self._track_maps(frames)
-        tracker = TalkerTracker(self.tracking)
+        tracker = TalkerTracker(self.tracking, self.view)
         fine_s = self.windows.fine_window_s
         lag_s = self.fine_lag_fraction * 0.5 * (fine_s - self.windows.window_s) if fine_s else 0.0
         return tuple(
@@ -367,7 +416,7 @@ class Pipeline:
         )
 
     def _track_maps(self, frames: tuple[FrameEstimate, ...]) -> tuple[TrackPoint, ...]:
-        tracker = MapTracker(self.map_azimuth_rad, self.map_tracking)
+        tracker = MapTracker(self.map_azimuth_rad, self.map_tracking, self.map_circular)
         out = []
         for f in frames:
             if f.power_map is None:

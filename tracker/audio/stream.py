@@ -120,9 +120,10 @@ class StreamingLocator:
         fine_s, short_s = w.fine_window_s, w.window_s
         self._lag_s = pipeline.fine_lag_fraction * 0.5 * (fine_s - short_s) if fine_s else 0.0
         self._separation_rad = float(talker_separation_rad)
-        self._tracker = TalkerTracker(pipeline.tracking)
+        self._tracker = TalkerTracker(pipeline.tracking, pipeline.view)
         # Pipeline(tracker="map"): each window's azimuth map feeds the map tracker instead.
-        self._map_tracker = (MapTracker(pipeline.map_azimuth_rad, pipeline.map_tracking)
+        self._map_tracker = (MapTracker(pipeline.map_azimuth_rad, pipeline.map_tracking,
+                                        pipeline.map_circular)
                              if pipeline.tracker == "map" else None)
         self._buf = np.zeros((pipeline.array.n_mics, 0))
         self._buf_start = 0  # absolute sample index of self._buf[:, 0]

@@ -35,7 +35,18 @@ returns the direction the camera should point at. The policy imitates a good ope
   0.05 s half hop + about 0.1 s of camera, so the shot lands where she is, not where she was);
 * after ``wide_after_switches`` switches back and forth between the same two directions within
   ``wide_window_s``, the camera takes a wide shot between them until one talker has held the
-  floor for ``wide_release_s``.
+  floor for ``wide_release_s``;
+* the majority rules (``majority_guard``, :class:`WindowVotes`): a candidate is not taken
+  while, since it first appeared, fewer confident short windows pointed at it than at the
+  current talker, who kept talking (a reflection, such as the mirror image behind an array on
+  a wall, wins a minority of windows while its source talks on; a new talker wins the windows
+  after the old one stops); and a direction that won a steady majority of the last
+  ``majority_window_s`` (at least ``majority_min_windows`` windows, ``majority_ratio`` times
+  the current talker's) is taken even when the long window disagrees, once the hold is over,
+  or at once when the current track has not had three windows of its own since it started (a
+  track that went to a reflection comes back);
+* with a field of view (``view``), estimates outside it count for nothing and the shot never
+  leaves it.
 """
 
 from __future__ import annotations
@@ -44,14 +55,92 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tracker.audio.array import FieldOfView
 from tracker.errors import ConfigError
 
 _MAX_CANDIDATES = 3
+STEADY_WINDOWS = 3  # a talker with fewer windows since a candidate appeared is not steady
+_VIEW_MARGIN_RAD = float(np.deg2rad(2.0))  # a grid search refines up to 2° past its edge
 
 
 def _wrap(angle_rad: float) -> float:
     """Wrap into (-pi, pi]."""
     return float(-((-angle_rad + np.pi) % (2 * np.pi) - np.pi))
+
+
+@dataclass(slots=True)
+class WindowVotes:
+    """Where recent confident speech windows pointed, for the trackers' majority rules.
+
+    Parameters
+    ----------
+    gate_rad : a window within this of a direction votes for it.
+    window_s, min_windows, ratio : a direction is a steady majority when, over the last
+        ``window_s``, at least ``min_windows`` windows and ``ratio`` times as many as the
+        current talker's voted for it.
+    """
+
+    gate_rad: float
+    window_s: float = 3.0
+    min_windows: int = 6
+    ratio: float = 2.0
+    _entries: list[tuple[float, float]] = field(default_factory=list)  # (t_s, azimuth_rad)
+
+    def add(self, t_s: float, azimuth_rad: float) -> None:
+        """A confident speech window's direction (time order)."""
+        keep_s = max(10.0, self.window_s)
+        self._entries = [e for e in self._entries if t_s - e[0] <= keep_s]
+        self._entries.append((t_s, _wrap(azimuth_rad)))
+
+    def near(self, azimuth_rad: float, since_s: float) -> int:
+        """Windows since ``since_s`` within the gate of ``azimuth_rad``."""
+        return sum(t >= since_s - 1e-9 and abs(_wrap(a - azimuth_rad)) <= self.gate_rad
+                   for t, a in self._entries)
+
+    def outvoted(self, candidate_rad: float, current_rad: float, since_s: float, t_s: float
+                 ) -> bool:
+        """True when fewer windows voted for the candidate than for the current talker, who
+        holds a steady majority: since ``since_s`` (the candidate's first appearance), or over
+        the last ``window_s`` when she kept talking after the candidate appeared (a new talker
+        who takes over from one who stopped is not held back)."""
+        for_current = self.near(current_rad, since_s)
+        if for_current >= STEADY_WINDOWS and self.near(candidate_rad, since_s) < for_current:
+            return True
+        if for_current == 0:
+            return False
+        since = t_s - self.window_s
+        for_current = self.near(current_rad, since)
+        return for_current >= STEADY_WINDOWS and self.near(candidate_rad, since) < for_current
+
+    def majority(self, t_s: float, current_rad: float) -> float | None:
+        """The direction of a steady majority away from the current talker (more than two
+        gates), or None; its azimuth is the mean of its windows.
+
+        Steady: over the last ``window_s`` at least ``min_windows`` windows voted for it and
+        ``ratio`` times as many as for the current talker, and it still leads over the last
+        third of that time (a talker who just stopped is no majority: her successor is not
+        undone).
+        """
+        recent = [(t, a) for t, a in self._entries if t_s - t <= self.window_s + 1e-9]
+        if len(recent) < self.min_windows:
+            return None
+        angles = [a for _, a in recent]
+        votes = [[b for b in angles if abs(_wrap(b - a)) <= self.gate_rad] for a in angles]
+        best = max(range(len(angles)), key=lambda i: (len(votes[i]), i))
+        members = votes[best]
+        centre = float(np.angle(np.mean(np.exp(1j * np.asarray(members)))))
+
+        def count(direction: float, since_s: float) -> int:
+            return sum(t >= since_s - 1e-9 and abs(_wrap(a - direction)) <= self.gate_rad
+                       for t, a in recent)
+
+        if (len(members) < self.min_windows or abs(_wrap(centre - current_rad)) <= 2.0 * self.gate_rad
+                or len(members) < self.ratio * count(current_rad, t_s - self.window_s)):
+            return None
+        lately = t_s - self.window_s / 3.0
+        if count(centre, lately) < max(STEADY_WINDOWS, self.ratio * count(current_rad, lately)):
+            return None
+        return centre
 
 
 def back_and_forth_midpoint(switches: list[tuple[float, float, float]], near_rad: float
@@ -98,6 +187,10 @@ class TrackerSettings:
     coast_s: float = 0.5
     reacquire_rad: float = float(np.deg2rad(20.0))
     reacquire_after_s: float = 0.2
+    majority_guard: bool = True
+    majority_window_s: float = 3.0
+    majority_min_windows: int = 6
+    majority_ratio: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("reaction_time_s", "min_hold_s", "pause_tolerance_s", "wide_window_s",
@@ -190,9 +283,14 @@ class _Candidate:
 
 @dataclass(slots=True)
 class TalkerTracker:
-    """Feed frames with :meth:`step`; see the module docstring for the policy."""
+    """Feed frames with :meth:`step`; see the module docstring for the policy.
+
+    ``view`` (optional): the field of view talkers can be in (base frame); estimates more than
+    2° outside it are ignored and the shot is kept inside it.
+    """
 
     settings: TrackerSettings = field(default_factory=TrackerSettings)
+    view: FieldOfView | None = None
     _talker: _Kalman | None = None
     _elevation_rad: float | None = None
     _candidates: list[_Candidate] = field(default_factory=list)
@@ -204,6 +302,13 @@ class TalkerTracker:
     _wide_rad: float | None = None
     _confidences: list[tuple[float, float]] = field(default_factory=list)
     _unvoiced: list[tuple[float, float, float]] = field(default_factory=list)
+    _votes: WindowVotes = field(init=False)
+    _talker_since_s: float = -np.inf  # when the current track started
+
+    def __post_init__(self) -> None:
+        s = self.settings
+        self._votes = WindowVotes(s.gate_rad, s.majority_window_s, s.majority_min_windows,
+                                  s.majority_ratio)
 
     def step(self, t_s: float, azimuth_rad: float, elevation_rad: float | None,
              confidence: float, speech: bool, fine_azimuth_rad: float | None = None,
@@ -216,7 +321,7 @@ class TalkerTracker:
         ``fine_lag_s`` before the short window's, so it counts less while the talker walks.
         """
         s = self.settings
-        finite = bool(np.isfinite(azimuth_rad))
+        finite = bool(np.isfinite(azimuth_rad)) and self._in_view(azimuth_rad)
         confident = speech and finite and confidence >= s.min_confidence
         if confident and s.confidence_quantile > 0.0:
             confident = self._confident(t_s, confidence)
@@ -229,16 +334,31 @@ class TalkerTracker:
             if s.unvoiced_updates:
                 self._follow_unvoiced(t_s, _wrap(azimuth_rad), confidence)
         fine = None
-        if speech and fine_azimuth_rad is not None and np.isfinite(fine_azimuth_rad):
+        if (speech and fine_azimuth_rad is not None and np.isfinite(fine_azimuth_rad)
+                and self._in_view(fine_azimuth_rad)):
             fine = _wrap(fine_azimuth_rad)
         if confident or fine is not None:
             floor_was_open = t_s - self._last_speech_t_s > s.pause_tolerance_s
             if confident:
                 self._frames += 1
+                self._votes.add(t_s, azimuth_rad)
             short = _wrap(azimuth_rad) if confident else None
             self._observe(t_s, short, elevation_rad, floor_was_open, fine, fine_lag_s)
             self._last_speech_t_s = t_s
         return self._target(t_s)
+
+    def _in_view(self, azimuth_rad: float) -> bool:
+        view = self.view
+        return view is None or view.full_circle or bool(
+            view.contains_azimuth(azimuth_rad, _VIEW_MARGIN_RAD))
+
+    def _outvoted(self, candidate: _Candidate, t_s: float) -> bool:
+        """The majority guard (module docstring): since ``candidate`` first appeared, fewer
+        confident short windows pointed at it than at the current talker, who kept talking."""
+        if not self.settings.majority_guard or self._talker is None:
+            return False
+        return self._votes.outvoted(candidate.azimuth_rad, float(self._talker.x[0]),
+                                    candidate.first_t_s, t_s)
 
     def _follow_unvoiced(self, t_s: float, z: float, confidence: float) -> None:
         """Within a turn, a confident frame the speech detector rejected, inside the nominal
@@ -282,6 +402,15 @@ class TalkerTracker:
         ``z`` is None when the short window was not confident enough to count.
         """
         s = self.settings
+        # The steady majority is taken once the hold is over, or at once when the current track
+        # never had a steady vote of its own (a track that went to a reflection).
+        if (self._talker is not None and z is not None and s.majority_guard
+                and (t_s - self._last_switch_t_s >= s.min_hold_s or self._votes.near(
+                    float(self._talker.x[0]), self._talker_since_s) < STEADY_WINDOWS)):
+            majority = self._votes.majority(t_s, float(self._talker.x[0]))
+            if majority is not None:  # the track is off the steady majority: go there
+                self._switch(t_s, majority, elevation_rad)
+                return
         if self._talker is not None:
             if floor_open:
                 self._talker.x[1] = 0.0  # a talker who paused is not still walking
@@ -332,6 +461,8 @@ class TalkerTracker:
             # points at is confirmed before the reaction time (adaptive confirmation).
             fast = c.hits >= s.fast_confirm_hits and short_confident
             confirmed = (persistent or fast) and abs(_wrap(fine - c.azimuth_rad)) <= s.gate_rad
+        if confirmed and self._outvoted(c, t_s):
+            return
         if confirmed and self._talker is not None and (
                 abs(self._talker.innovation(c.azimuth_rad)) <= s.reacquire_rad):
             # Near the current talker: her again if her track has had no evidence for
@@ -382,6 +513,7 @@ class TalkerTracker:
         else:
             self._last_switch_t_s = t_s
         self._talker = _Kalman(np.array([azimuth_rad, 0.0]), p0, t_s)
+        self._talker_since_s = t_s
         self._elevation_rad = elevation_rad
         self._candidates = []
         self._target_rad = azimuth_rad
@@ -411,6 +543,14 @@ class TalkerTracker:
             self._wide_rad = s.wide_azimuth_rad if s.wide_azimuth_rad is not None else mid
 
     def _target(self, t_s: float) -> TrackPoint:
+        point = self._shot(t_s)
+        if self.view is None or self.view.full_circle or point.shot == "none":
+            return point
+        # The shot stays in view (a walker's lead, or a wide shot's midpoint, may leave it).
+        return TrackPoint(point.t_s, self.view.nearest_azimuth(point.azimuth_rad),
+                          point.elevation_rad, point.shot, point.talker_azimuth_rad)
+
+    def _shot(self, t_s: float) -> TrackPoint:
         s = self.settings
         if self._talker is None:
             return TrackPoint(t_s, self._target_rad, self._elevation_rad, "none", None)

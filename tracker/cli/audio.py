@@ -30,8 +30,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     locate.add_argument("recording", metavar="REC.wav", help="multichannel WAV, one channel per mic")
     locate.add_argument("--array", required=True, metavar="ARRAY.json",
-                        help='mic geometry {"mics": [[x, y, z], ...], "mount": "room"|"head"} '
-                             "in metres")
+                        help='mic geometry {"mics": [[x, y, z], ...] (metres), "mount": '
+                             '"room"|"wall"|"table"|"ceiling"|"head", "field_of_view": '
+                             '{"azimuth_deg": [lo, hi], "elevation_deg": [lo, hi]}}')
     locate.add_argument("--encoder", metavar="LOG.csv", default=None,
                         help="head angles during the recording, for a head-mounted array: CSV "
                              "t (s from the first sample), pan, tilt (rad; or pan_deg, tilt_deg), "
@@ -43,12 +44,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     locate.add_argument("--fine-window-s", type=float, default=1.5,
                         help="longer window that refines the tracked talker (s); 0 turns it off")
     locate.add_argument("--front-only", action="store_true",
-                        help="search only -90°..90° azimuth of the array's frame (array on a wall "
-                             "or under a camera); for a head-mounted array, also keep the map "
-                             "tracker's talkers in -90°..90° of the base frame")
+                        help="narrow the array's field of view to -90°..90° azimuth (an array on "
+                             "a wall or under a camera; an array file can say so itself: "
+                             '"mount": "wall"); for a head-mounted array, of the base frame')
     locate.add_argument("--tracker", default="auto", choices=("auto", *TRACKERS),
-                        help="talker tracker: map (steered-response maps; srp_phat, --front-only) "
-                             "or kalman (window peaks); auto picks map where it applies")
+                        help="talker tracker: map (steered-response maps; srp_phat) or kalman "
+                             "(window peaks); auto picks map where it applies")
     locate.add_argument("--json", action="store_true", help="print the JSON contract")
     locate.set_defaults(func=run_locate)
     audio.set_defaults(func=lambda args: _help(audio))
@@ -71,20 +72,19 @@ def run_locate(args: argparse.Namespace) -> int:
 
     array = load_array(args.array)
     fs_hz, audio = read_wav(args.recording)
-    front = (-np.pi / 2, np.pi / 2) if args.front_only else None
-    options = {"azimuth_range_rad": front} if front and args.method not in ("seed_rms", "gcc_phat") else {}
+    # Where talkers can be (base frame): the array's field of view, narrowed by --front-only.
+    view = array.field_of_view.narrowed((-np.pi / 2, np.pi / 2), array.name) if args.front_only \
+        else array.field_of_view
+    searched = view.azimuth_range_rad
+    options = ({"azimuth_range_rad": searched}
+               if searched is not None and args.method in ("srp_phat", "srp_dpd")
+               and not array.head_mounted else {})
     fine_s = args.fine_window_s if args.fine_window_s and args.fine_window_s > 0 else None
-    # Where talkers can be in the base frame: a head-mounted array's own range turns with the head.
-    base_range = front if array.head_mounted else options.get("azimuth_range_rad")
-    tracker = choose_tracker(args.method, array, base_range) if args.tracker == "auto" else args.tracker
-    if tracker == "map" and array.head_mounted and base_range is None:
-        raise ConfigError(f"--tracker map with a head-mounted array ({array.name}) needs --front-only "
-                          "(talkers in -90°..90° of the base frame): the map tracker's grid is a "
-                          "line, not a circle")
+    tracker = choose_tracker(args.method) if args.tracker == "auto" else args.tracker
     pipeline = Pipeline(array, fs_hz, args.method,
                         WindowSettings(args.window_s, args.hop_s, fine_s),
                         localizer_options=options, tracker=tracker,
-                        base_azimuth_range_rad=base_range if array.head_mounted else None)
+                        base_azimuth_range_rad=searched if array.head_mounted else None)
     if array.head_mounted:
         if args.encoder is None:
             raise ConfigError(f"{array.name} is head-mounted (\"mount\": \"head\"): give the "

@@ -204,17 +204,11 @@ def test_an_encoder_log_that_stops_early_is_a_one_line_error(head_recording, tmp
     assert "short.csv" in line and "0.00-1.50 s" in line and "0-4.00 s" in line
 
 
-def test_auto_takes_the_map_tracker_only_where_it_applies():
+def test_auto_takes_the_map_tracker_where_the_localizer_gives_maps():
     from tracker.audio.pipeline import choose_tracker
 
-    square, seed_pairs = example_array("square4_65mm"), load_array(ARRAYS_DIR / "seed_pairs.json")
-    front = (-np.pi / 2, np.pi / 2)
-    assert choose_tracker("srp_phat", square, front) == "map"
-    assert choose_tracker("srp_phat", square, None) == "kalman"  # a full circle: its map is a line
-    assert choose_tracker("gcc_phat", square, front) == "kalman"
-    # A head-mounted array's maps are turned into the base frame: the range is the base frame's.
-    assert seed_pairs.head_mounted and choose_tracker("srp_phat", seed_pairs, front) == "map"
-    assert choose_tracker("srp_phat", seed_pairs, None) == "kalman"
+    assert choose_tracker("srp_phat") == "map"  # any view: a limited one (a line) or a circle
+    assert choose_tracker("gcc_phat") == "kalman" and choose_tracker("srp_dpd") == "kalman"
 
 
 def test_a_head_mounted_array_takes_the_map_tracker_with_front_only(head_recording, capsys):
@@ -229,9 +223,10 @@ def test_a_head_mounted_array_takes_the_map_tracker_with_front_only(head_recordi
     assert late and max(abs(a - 35.0) for a in late) < 4.0, late
 
 
-def test_the_map_tracker_on_a_head_without_front_only_is_a_one_line_error(head_recording, capsys):
+def test_a_head_mounted_array_tracks_all_round_without_front_only(head_recording, capsys):
+    """The map tracker's base grid is a circle when the base view is the full circle."""
     wav, array, encoder = head_recording
     assert main(["audio", "locate", wav, "--array", array, "--encoder", encoder,
-                 "--tracker", "map"]) == 2
-    line = _error_line(capsys)
-    assert "--front-only" in line and "head_square.json" in line
+                 "--tracker", "map", "--json"]) == 0
+    track = json.loads(capsys.readouterr().out)["track"]
+    assert abs(track[-1]["azimuth_deg"] - 35.0) < 3.0

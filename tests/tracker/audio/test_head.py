@@ -275,10 +275,11 @@ def test_the_map_tracker_follows_a_talker_in_the_base_frame_while_the_head_turns
                                atol=1e-9, equal_nan=True)
 
 
-def test_the_map_tracker_on_a_head_needs_a_base_range():
+def test_the_map_tracker_on_a_head_tracks_the_base_view():
+    """Without a base range the base grid is the array's view: the full circle, a circle."""
     array = head_array("square4_65mm")
-    with pytest.raises(ConfigError, match="base_azimuth_range_rad"):
-        Pipeline(array, FS_HZ, "srp_phat", tracker="map")
+    pipeline = Pipeline(array, FS_HZ, "srp_phat", tracker="map")
+    assert pipeline.map_circular and pipeline.map_azimuth_rad.size == 360
     with pytest.raises(ConfigError, match="room-mounted"):
         Pipeline(example_array("square4_65mm"), FS_HZ, "srp_phat", tracker="map",
                  base_azimuth_range_rad=(-1.0, 1.0))

@@ -293,5 +293,6 @@ def test_map_tracker_needs_srp_phat_and_a_known_name(square4: MicArray):
         Pipeline(square4, FS_HZ, "gcc_phat", tracker="map")
     with pytest.raises(ConfigError, match="unknown tracker"):
         Pipeline(square4, FS_HZ, tracker="particle")  # type: ignore[arg-type]
-    with pytest.raises(ConfigError, match="head-mounted"):
-        Pipeline(dataclasses.replace(square4, mount="head"), FS_HZ, tracker="map")
+    with pytest.raises(ConfigError, match="within ±2π"):  # a head's base range is checked
+        Pipeline(dataclasses.replace(square4, mount="head"), FS_HZ, tracker="map",
+                 base_azimuth_range_rad=(1.0, -1.0))

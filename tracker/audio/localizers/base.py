@@ -67,31 +67,39 @@ def direction_grid(
     elevation_step_rad: float,
     azimuth_range_rad: tuple[float, float] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Candidate directions the array can tell apart.
+    """Candidate directions the array can tell apart, within its field of view.
 
-    Azimuth spans the full circle when the array has depth along x, otherwise the front half
-    (-90°..90°); ``azimuth_range_rad`` narrows it further (an array on a wall, or under a
-    camera that cannot turn around, has nothing to find behind it). Elevation spans
-    -80°..80° when the array has height, otherwise 0 only.
+    Azimuth spans the field of view (:attr:`MicArray.search_view`; the full circle when the
+    array has depth along x and sees everywhere), and at most the front half (-90°..90°) when
+    the array has no depth along x; ``azimuth_range_rad`` replaces the field of view's range
+    (an array on a wall, or under a camera that cannot turn around, has nothing to find behind
+    it). Elevation spans :attr:`MicArray.elevation_range_rad` (the view's elevations within
+    ±80° for an array with height), else 0 only.
 
     Returns
     -------
     azimuth_rad, elevation_rad : ndarray, shape (n_grid,) each
     """
+    if azimuth_range_rad is None:
+        azimuth_range_rad = array.search_view.azimuth_range_rad
     if azimuth_range_rad is not None:
         lo, hi = azimuth_range_rad
         if not (-2 * np.pi <= lo < hi <= 2 * np.pi):
             raise ConfigError(f"azimuth_range_rad={azimuth_range_rad} must be increasing, within ±2π")
         if not array.resolves_front_back:
             lo, hi = max(lo, -np.pi / 2), min(hi, np.pi / 2)
+            if lo >= hi:
+                raise ConfigError(f"{array.name}: azimuths {np.rad2deg(azimuth_range_rad)}° are "
+                                  "outside the -90°..90° an array without depth along x can tell")
         az = np.linspace(lo, hi, max(2, int(round((hi - lo) / azimuth_step_rad)) + 1))
     elif array.resolves_front_back:
         az = np.arange(-np.pi, np.pi, azimuth_step_rad)
     else:
         az = np.linspace(-np.pi / 2, np.pi / 2, int(round(np.pi / azimuth_step_rad)) + 1)
-    if array.resolves_elevation:
-        limit = np.deg2rad(80.0)
-        el = np.linspace(-limit, limit, int(round(2 * limit / elevation_step_rad)) + 1)
+    elevation_range = array.elevation_range_rad
+    if elevation_range is not None:
+        lo, hi = elevation_range
+        el = np.linspace(lo, hi, max(1, int(round((hi - lo) / elevation_step_rad))) + 1)
     else:
         el = np.zeros(1)
     az_grid, el_grid = np.meshgrid(az, el, indexing="ij")

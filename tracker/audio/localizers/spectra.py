@@ -408,7 +408,7 @@ class SrpGrid:
         az0, el0 = self.azimuth_rad[best], self.elevation_rad[best]
         span = self._az_step
         offsets = np.arange(-span, span + refine_step_rad / 2, refine_step_rad)
-        if self.array.resolves_elevation:
+        if self._el_step > 0.0:  # the grid has elevations: refine them too
             el_span = self._el_step
             el_offsets = np.arange(-el_span, el_span + refine_step_rad, 2 * refine_step_rad)
             d_az, d_el = (d.ravel() for d in np.meshgrid(offsets, el_offsets, indexing="ij"))

@@ -106,7 +106,7 @@ class SrpDpd:
         peak = self._grid.peak(g)
         return DirectionEstimate(
             azimuth_rad=float(wrap_angle(peak.azimuth_rad)),
-            elevation_rad=peak.elevation_rad if self.array.resolves_elevation else None,
+            elevation_rad=peak.elevation_rad if self.array.sees_elevation else None,
             confidence=float(np.clip(peak.power, 0.0, 1.0)),
         )
 

@@ -47,14 +47,15 @@ class SrpWindows:
         Azimuth in (-pi, pi]; elevation 0 when the array cannot observe it.
     gcc : GccTable
         Values of shape (n_windows, n_pairs, n_lags) (feed an :class:`SrpGrid` for a map).
-    resolves_elevation : bool
+    sees_elevation : bool
+        Whether the elevations mean anything (:attr:`MicArray.sees_elevation`).
     """
 
     azimuth_rad: FloatArray
     elevation_rad: FloatArray
     confidence: FloatArray
     gcc: GccTable
-    resolves_elevation: bool
+    sees_elevation: bool
 
     def __len__(self) -> int:
         return int(self.azimuth_rad.size)
@@ -63,7 +64,7 @@ class SrpWindows:
         """Window ``k``'s estimate."""
         return DirectionEstimate(
             azimuth_rad=float(self.azimuth_rad[k]),
-            elevation_rad=float(self.elevation_rad[k]) if self.resolves_elevation else None,
+            elevation_rad=float(self.elevation_rad[k]) if self.sees_elevation else None,
             confidence=float(self.confidence[k]),
         )
 
@@ -184,10 +185,10 @@ class SrpPhat:
             confidence = steered_responses(confidence_cross, self._band_freqs_hz, delays)
         return SrpWindows(
             azimuth_rad=np.asarray(wrap_angle(azimuth), dtype=float),
-            elevation_rad=elevation if self.array.resolves_elevation else np.zeros_like(azimuth),
+            elevation_rad=elevation if self.array.sees_elevation else np.zeros_like(azimuth),
             confidence=np.clip(confidence, 0.0, 1.0),
             gcc=tables,
-            resolves_elevation=self.array.resolves_elevation,
+            sees_elevation=self.array.sees_elevation,
         )
 
     # -- one window ------------------------------------------------------------------------
