@@ -236,7 +236,7 @@ class MicArray:
         limit = math.radians(80.0)
         if self.resolves_elevation:
             return max(lo, -limit), min(hi, limit)
-        if lo <= 0.0 <= hi:
+        if lo < 0.0 < hi:  # both sides of the array's plane: no sign to settle
             return None
         return max(lo, -limit), min(hi, limit)
 

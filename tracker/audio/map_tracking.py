@@ -369,8 +369,10 @@ class MapTracker:
         turn_start = self._candidate[0] - self._speech_run_t_s <= s.onset_s
         if not turn_start and t_s - self._candidate[0] < s.reaction_time_s - 1e-9:
             return
+        # Over a full circle a reflection can win bursts of windows (the mirror image behind a
+        # wall): there the talker's majority over the last seconds counts too.
         if current is not None and s.majority_guard and self._votes.outvoted(
-                peak_at, current, self._candidate[0], t_s):
+                peak_at, current, self._candidate[0], t_s, recent=self.circular):
             return
         if current is not None and self._distance(peak_at, current) <= s.reacquire_rad:
             self._start_talker(t_s, peak_at, elevation_rad)  # the same talker found again

@@ -356,7 +356,7 @@ class Pipeline:
                                      starts[fine_windows] + n_win - fine_lo])
         n_short = starts.size
         azimuth, elevation, confidence = (np.empty(job_start.size) for _ in range(3))
-        maps = (np.empty((n_short, self._map_grid.azimuth_rad.size))
+        maps = (np.empty((n_short, self.steer_azimuth_rad.size))
                 if self._map_grid is not None else None)
         if frames is not None:
             self._locate_jobs(frames, audio, offset, job_start, job_length, n_short,
@@ -400,7 +400,7 @@ class Pipeline:
             confidence[some] = located.confidence
             if maps is not None and self._map_grid is not None and np.any(short):
                 tables = GccTable(located.gcc.values[short], located.gcc.first_lag)
-                maps[some[short]] = np.atleast_2d(self._map_grid.response(tables))
+                maps[some[short]] = np.atleast_2d(self._map_response(tables))
 
     def track(self, frames: tuple[FrameEstimate, ...]) -> tuple[TrackPoint, ...]:
         """Run the talker tracker over frames in time order (fresh tracker each call)."""

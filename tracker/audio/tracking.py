@@ -60,6 +60,7 @@ from tracker.errors import ConfigError
 
 _MAX_CANDIDATES = 3
 STEADY_WINDOWS = 3  # a talker with fewer windows since a candidate appeared is not steady
+_GAP_S = 0.25  # a pause this long before a new direction ends the current talker's turn
 _VIEW_MARGIN_RAD = float(np.deg2rad(2.0))  # a grid search refines up to 2° past its edge
 
 
@@ -97,16 +98,22 @@ class WindowVotes:
         return sum(t >= since_s - 1e-9 and abs(_wrap(a - azimuth_rad)) <= self.gate_rad
                    for t, a in self._entries)
 
-    def outvoted(self, candidate_rad: float, current_rad: float, since_s: float, t_s: float
-                 ) -> bool:
+    def outvoted(self, candidate_rad: float, current_rad: float, since_s: float, t_s: float,
+                 recent: bool = True) -> bool:
         """True when fewer windows voted for the candidate than for the current talker, who
-        holds a steady majority: since ``since_s`` (the candidate's first appearance), or over
-        the last ``window_s`` when she kept talking after the candidate appeared (a new talker
-        who takes over from one who stopped is not held back)."""
+        holds a steady majority: since ``since_s`` (the candidate's first appearance), or, with
+        ``recent``, over the last ``window_s`` when she was talking when the candidate appeared
+        (a window of hers since, or less than ``_GAP_S`` before: a new talker who takes over
+        after a pause is not held back, one who interrupts waits for the majority)."""
         for_current = self.near(current_rad, since_s)
         if for_current >= STEADY_WINDOWS and self.near(candidate_rad, since_s) < for_current:
             return True
-        if for_current == 0:
+        if not recent:
+            return False
+        last = max((t for t, a in self._entries
+                    if t < since_s and abs(_wrap(a - current_rad)) <= self.gate_rad),
+                   default=-np.inf)
+        if for_current == 0 and since_s - last > _GAP_S:
             return False
         since = t_s - self.window_s
         for_current = self.near(current_rad, since)
@@ -357,8 +364,11 @@ class TalkerTracker:
         confident short windows pointed at it than at the current talker, who kept talking."""
         if not self.settings.majority_guard or self._talker is None:
             return False
+        # Over a full circle a reflection can win bursts of windows (the mirror image behind a
+        # wall): there the talker's majority over the last seconds counts too.
+        full_circle = self.view is not None and self.view.full_circle
         return self._votes.outvoted(candidate.azimuth_rad, float(self._talker.x[0]),
-                                    candidate.first_t_s, t_s)
+                                    candidate.first_t_s, t_s, recent=full_circle)
 
     def _follow_unvoiced(self, t_s: float, z: float, confidence: float) -> None:
         """Within a turn, a confident frame the speech detector rejected, inside the nominal

@@ -296,3 +296,46 @@ def test_map_tracker_needs_srp_phat_and_a_known_name(square4: MicArray):
     with pytest.raises(ConfigError, match="within ±2π"):  # a head's base range is checked
         Pipeline(dataclasses.replace(square4, mount="head"), FS_HZ, tracker="map",
                  base_azimuth_range_rad=(1.0, -1.0))
+
+
+# -- a full-circle grid and the majority guard --------------------------------------------------
+
+CIRCLE_RAD = np.deg2rad(np.arange(-180.0, 180.0, 1.0))
+
+
+def circle_map(rng: np.random.Generator, talker_deg: float, height: float = 0.35) -> np.ndarray:
+    offset = np.rad2deg(np.angle(np.exp(1j * (CIRCLE_RAD - np.deg2rad(talker_deg)))))
+    return 0.05 + height * np.exp(-0.5 * (offset / 18.0) ** 2) + 0.005 * rng.standard_normal(
+        CIRCLE_RAD.size)
+
+
+def test_a_circular_grid_follows_a_talker_walking_across_180_degrees():
+    """A full-circle view (an array on a table) is a circle: the talker walks from 150° to
+    -150° through 180° (behind the array's x axis) and the shot goes with her, the short way."""
+    rng = np.random.default_rng(1)
+    tracker = MapTracker(CIRCLE_RAD, MapTrackerSettings(), circular=True)
+    path = 150.0 + 6.0 * np.arange(100) * HOP_S  # 6°/s for 10 s: 150° -> 210° (-150°)
+    for k, a in enumerate(path):
+        point = tracker.step(k * HOP_S, circle_map(rng, float(a)), None, True, 0.6)
+        if k * HOP_S >= 2.0:
+            error = abs(np.angle(np.exp(1j * (point.azimuth_rad - np.deg2rad(a)))))
+            assert np.rad2deg(error) < 6.0, (k, np.rad2deg(point.azimuth_rad), a)
+    with pytest.raises(ConfigError, match="full turn"):
+        MapTracker(GRID_RAD, circular=True)
+
+
+@pytest.mark.parametrize("guard", [True, False])
+def test_a_minority_bearing_is_not_adopted_against_a_steady_majority(guard):
+    """The majority guard of a full circle: a talker at 60° keeps talking; her mirror image
+    (120°) wins 4 of every 10 windows, in bursts (as behind an array on a wall), stronger
+    than her. Without the guard the bursts move the camera; with it, never."""
+    rng = np.random.default_rng(2)
+    settings = MapTrackerSettings(majority_guard=guard)
+    tracker = MapTracker(CIRCLE_RAD, settings, circular=True)
+    on_mirror = 0
+    for k in range(200):
+        mirror = k % 10 >= 6 and k > 20
+        point = tracker.step(k * HOP_S, circle_map(rng, 120.0 if mirror else 60.0, 0.5 if mirror
+                                                   else 0.35), None, True, 0.6)
+        on_mirror += point.shot == "talker" and abs(point.azimuth_rad - np.deg2rad(120.0)) < 0.2
+    assert (on_mirror == 0) if guard else (on_mirror > 0)

@@ -122,9 +122,9 @@ def test_settings_are_validated():
         TrackerSettings(deadband_rad=1.0)
 
 
-def run_with_fine(short_deg, fine_deg, speech=None, settings=None, confidence=None):
+def run_with_fine(short_deg, fine_deg, speech=None, settings=None, confidence=None, view=None):
     """Feed frames with a long-window estimate as well; returns (times, target_deg)."""
-    tracker = TalkerTracker(settings or TrackerSettings())
+    tracker = TalkerTracker(settings or TrackerSettings(), view)
     n = len(short_deg)
     speech = np.ones(n, bool) if speech is None else np.asarray(speech, bool)
     confidence = np.full(n, 0.5) if confidence is None else np.asarray(confidence, float)
@@ -232,3 +232,32 @@ def test_walker_is_followed_through_gaps_the_speech_detector_rejects():
     assert worst_error(TrackerSettings(lead_s=0.0)) < 5.0  # no latency here: no lead
     frozen = TrackerSettings(unvoiced_updates=False, coast_s=0.0, lead_s=0.0)
     assert worst_error(frozen) > 5.0  # without them the shot freezes in every gap
+
+
+def test_a_minority_bearing_is_not_adopted_and_a_ghost_track_returns_to_the_majority():
+    """The majority rules of a full-circle view. A talker at -60° keeps talking; bursts of three
+    windows at her mirror image (-120°), and the long window (1.5 s) agreeing with them, used
+    to move the camera there for the 2 s hold (the outside tester's 'jumped to the mirror
+    bearing and stayed'). Since the burst appeared she had fewer windows, but over the last 3 s
+    more: not adopted; and a track that starts on the mirror returns to her at once."""
+    from tracker.audio.array import FieldOfView
+
+    rng = np.random.default_rng(3)
+    circle = FieldOfView()
+    n = 120
+    mirror = np.array([k % 10 in (6, 7, 8) and k > 20 for k in range(n)])
+    short = np.where(mirror, -120.0, -60.0) + rng.normal(0, 1.0, n)
+    fine = np.where(np.roll(mirror, 1), -120.0, -60.0)
+    t, target = run_with_fine(short, fine, view=circle)
+    assert np.all(np.abs(target[t >= 1.0] + 60.0) < 5.0)
+    off = TrackerSettings(majority_guard=False)
+    t, target = run_with_fine(short, fine, settings=off, view=circle)
+    assert np.any(np.abs(target + 120.0) < 5.0)  # the rule is what holds her
+    # Starting on the mirror (its windows first), the track goes to the steady majority.
+    short = np.concatenate([np.full(3, -120.0), np.full(57, -60.0)]) + rng.normal(0, 1.0, 60)
+    fine = np.concatenate([np.full(12, -120.0), np.full(48, -60.0)])
+    t, target = run_with_fine(short, fine, view=circle)
+    assert np.abs(target[-1] + 60.0) < 5.0
+    back = t[np.abs(target + 60.0) < 5.0][0]
+    t_off, target_off = run_with_fine(short, fine, settings=off, view=circle)
+    assert back < t_off[np.abs(target_off + 60.0) < 5.0][0]  # sooner than the hold allowed
