@@ -36,9 +36,11 @@ when she leaves ``deadband_rad`` (``moving_deadband_rad`` above ``moving_rate_ra
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from tracker.audio.filters import gaussian_blur
@@ -318,7 +320,12 @@ class MapTracker:
         return np.asarray(np.remainder(d + np.pi, 2.0 * np.pi) - np.pi) if self.circular else d
 
     def _distance(self, a: float, b: float) -> float:
-        return abs(float(self._offset(a, b)))
+        """``|a - b|`` (rad), the short way round on a circular grid (Python floats: the same
+        values as :meth:`_offset`)."""
+        d = float(a) - float(b)
+        if self.circular:
+            d = (d + math.pi) % (2.0 * math.pi) - math.pi
+        return abs(d)
 
     def _on_grid(self, azimuth_rad: float) -> float:
         """An azimuth wrapped (circular grid) or held between the grid's ends (a line)."""
@@ -466,22 +473,31 @@ class MapTracker:
         return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)
 
 
+@njit(cache=True, error_model="numpy")
 def _shift_rows(rows: FloatArray, cells: FloatArray, circular: bool = False) -> FloatArray:
     """Row ``k`` of ``rows`` (n_rows, n) moved by ``cells[k]`` cells (linear interpolation):
-    ``np.interp(arange(n) - cells[k], arange(n), rows[k])`` for every row at once, with
-    np.interp's formula; the edges hold, or the rows wrap round when ``circular``."""
-    n = rows.shape[1]
-    x = np.arange(n, dtype=float)[None, :] - cells[:, None]
-    k = np.arange(rows.shape[0])[:, None]
-    if circular:
-        x = np.remainder(x, n)
-        j = np.minimum(np.floor(x), n - 1).astype(np.int64)
-        left, right = rows[k, j], rows[k, (j + 1) % n]
-        return np.asarray((right - left) * (x - j) + left)
-    j = np.clip(np.floor(x), 0, n - 2).astype(np.int64)
-    left, right = rows[k, j], rows[k, j + 1]
-    inside = (right - left) * (x - j) + left
-    return np.asarray(np.where(x <= 0.0, rows[:, :1], np.where(x >= n - 1, rows[:, -1:], inside)))
+    ``np.interp(arange(n) - cells[k], arange(n), rows[k])`` for every row, with np.interp's
+    formula; the edges hold, or the rows wrap round when ``circular``."""
+    n_rows, n = rows.shape
+    out = np.empty_like(rows)
+    for k in range(n_rows):
+        row = rows[k]
+        for i in range(n):
+            x = float(i) - cells[k]
+            if circular:
+                x = x % n
+                j = min(int(np.floor(x)), n - 1)
+                left, right = row[j], row[(j + 1) % n]
+                out[k, i] = (right - left) * (x - j) + left
+            elif x <= 0.0:
+                out[k, i] = row[0]
+            elif x >= n - 1:
+                out[k, i] = row[n - 1]
+            else:
+                j = min(max(int(np.floor(x)), 0), n - 2)
+                left, right = row[j], row[j + 1]
+                out[k, i] = (right - left) * (x - j) + left
+    return out
 
 
 def _wrap(angle_rad: float) -> float:

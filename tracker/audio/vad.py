@@ -194,7 +194,8 @@ class SpeechDetector:
         level_db = 10 * np.log10(np.mean(frames**2, axis=-1) + 1e-20)
         acf = np.fft.irfft(np.abs(np.fft.rfft(low[index] * self._window, self.nfft, axis=-1)) ** 2,
                            axis=-1)
-        acf = acf[:, : self.frame] / (acf[:, :1] + 1e-20) / self._window_acf[None, : self.frame]
+        reach = min(self.frame, int(self._lags[-1]) + 2)  # the lags the pitch search reads
+        acf = acf[:, :reach] / (acf[:, :1] + 1e-20) / self._window_acf[None, :reach]
         in_range = acf[:, self._lags]
         harmonicity = np.clip(in_range.max(axis=-1), 0.0, 1.0)
         # Pitch period: the shortest lag that is a local peak within 15 % of the highest (the

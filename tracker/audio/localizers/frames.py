@@ -12,10 +12,12 @@ gives (row by row the FFT is the same).
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 from numpy.typing import NDArray
 
-from tracker.audio.localizers.srp_kernels import sort_blocks, store_pair_products
+from tracker.audio.localizers.srp_kernels import store_pair_products
 from tracker.errors import DataError
 
 FloatArray = NDArray[np.float64]
@@ -42,9 +44,6 @@ class StftFrames:
     * ``cross_re[row]``, ``cross_im[row]``, shape (n_band, n_pairs): the real and imaginary
       parts of the pair products ``X_i X_j*`` at the band's bins (of ``X / |X|`` with
       ``unit_magnitude``: per-frame PHAT);
-    * ``block_sorted[row]``, shape (nfft // 2 + 1,): ``power[row]`` with the bins of each
-      block ``block_edges[i]..block_edges[i + 1]`` sorted (the noise floor's blocks,
-      :func:`~tracker.audio.localizers.spectra.noise_floor`);
     * ``rising[row]``, shape (n_band,): how much the power rose since the frame one hop
       earlier, ``clip(1 - P_prev / (P + 1e-30), 0, 1)`` at the band's bins (the onset weight
       before its exponent, :func:`~tracker.audio.localizers.spectra.onset_weights`), NaN while
@@ -57,25 +56,23 @@ class StftFrames:
         The rfft bins the localizer steers (its band: consecutive bins).
     first, second : ndarray of int, shape (n_pairs,)
         The mics of each pair.
-    block_edges : ndarray of int, shape (n_blocks + 1,)
     unit_magnitude : bool
     """
 
     def __init__(self, n_mics: int, nfft: int, band_bins: IntArray, first: IntArray,
-                 second: IntArray, block_edges: IntArray, unit_magnitude: bool = False) -> None:
+                 second: IntArray, unit_magnitude: bool = False) -> None:
         self.n_mics = int(n_mics)
         self.nfft = int(nfft)
         self.band_bins = np.asarray(band_bins, dtype=np.int64)
         self.first = np.asarray(first, dtype=np.int64)
         self.second = np.asarray(second, dtype=np.int64)
-        self.block_edges = np.asarray(block_edges, dtype=np.int64)
         self.unit_magnitude = unit_magnitude
         self._window = np.hanning(self.nfft + 1)[: self.nfft]
         self._row_of: dict[int, int] = {}
+        self._order: list[int] = []  # the kept starts, increasing
         self._free: list[int] = []
         n_freq, n_band, n_pairs = self.nfft // 2 + 1, self.band_bins.size, self.first.size
         self.power: FloatArray = np.zeros((0, n_freq))
-        self.block_sorted: FloatArray = np.zeros((0, n_freq))
         self.rising: FloatArray = np.zeros((0, n_band))
         self.cross_re: FloatArray = np.zeros((0, n_band, n_pairs))
         self.cross_im: FloatArray = np.zeros((0, n_band, n_pairs))
@@ -89,7 +86,7 @@ class StftFrames:
             new[:used] = old
             return new
 
-        self.power, self.block_sorted = grown(self.power), grown(self.block_sorted)
+        self.power = grown(self.power)
         self.rising = grown(self.rising, np.nan)
         self.cross_re, self.cross_im = grown(self.cross_re), grown(self.cross_im)
         self._free += list(range(capacity - 1, used - 1, -1))
@@ -118,10 +115,14 @@ class StftFrames:
         if len(self._free) < new.size:
             self._allocate(max(2 * self.power.shape[0], len(self) + new.size, 16))
         rows = np.array([self._free.pop() for _ in range(new.size)], dtype=np.int64)
-        power = np.mean(np.abs(spectra) ** 2, axis=0)
-        self.power[rows] = power
-        sort_blocks(power, self.block_edges, rows, self.block_sorted)
-        self._row_of.update(zip(new.tolist(), rows.tolist(), strict=True))
+        self.power[rows] = np.mean(np.abs(spectra) ** 2, axis=0)
+        new_starts = new.tolist()
+        self._row_of.update(zip(new_starts, rows.tolist(), strict=True))
+        if self._order and new_starts[0] < self._order[-1]:
+            for start in new_starts:
+                bisect.insort(self._order, start)
+        else:  # the usual case: later than every kept frame
+            self._order.extend(new_starts)
         self._update_rising(new, rows)
         store_pair_products(spectra, int(self.band_bins[0]), rows, self.first, self.second,
                             self.unit_magnitude, self.cross_re, self.cross_im)
@@ -154,8 +155,9 @@ class StftFrames:
 
     def forget_before(self, sample: int) -> None:
         """Drop the frames starting before ``sample`` (no window needs them any more)."""
-        old = [s for s in self._row_of if s < sample]
-        for s in old:
-            row = self._row_of.pop(s)
-            self.rising[row] = np.nan
-            self._free.append(row)
+        drop = bisect.bisect_left(self._order, sample)
+        if drop:
+            rows = [self._row_of.pop(start) for start in self._order[:drop]]
+            self.rising[rows] = np.nan
+            self._free.extend(rows)
+            del self._order[:drop]

@@ -97,64 +97,55 @@ _SAMPLE = 48  # values sampled to bracket an order statistic
 
 
 @njit(cache=True, error_model="numpy")
-def _kth_of_sorted_runs(block_sorted: FloatArray, rows: IntArray, lo_bin: int, hi_bin: int, k: int,
-                        sample: FloatArray, scratch: FloatArray, buffer: FloatArray) -> float:
-    """The ``k``-th smallest (0-based) of ``block_sorted[rows, lo_bin:hi_bin]``, exactly.
+def _kth_smallest(values: FloatArray, n: int, k: int, sample: FloatArray, buffer: FloatArray
+                  ) -> float:
+    """The ``k``-th smallest of ``values[:n]`` (0-based), exactly; ``values`` is reordered.
 
-    Each row's segment is sorted, so after bracketing the answer between two values of an
-    evenly spaced sample, each row is scanned only up to the bracket's top (for a low quantile
-    a few values per row) and the selection runs on the values inside the bracket. Falls back
-    to a quickselect over every value when the bracket misses.
+    Brackets it between two values of an evenly spaced sample of ``sample.size`` values; one
+    pass counts the values below the bracket and collects those inside (few, for a low
+    quantile), and the selection runs on those only. Falls back to a quickselect over all the
+    values when the bracket misses. ``buffer`` holds at least ``n`` values.
     """
-    width = hi_bin - lo_bin
-    n = rows.size * width
     n_sample = sample.size
+    if n < 8 * n_sample:
+        return _select(values, n, k)
     for i in range(n_sample):
-        position = (i * n) // n_sample
-        sample[i] = block_sorted[rows[position // width], lo_bin + position % width]
+        sample[i] = values[(i * n) // n_sample]
     sample.sort()
     centre = (k * n_sample) // n
     lo = sample[centre - 4] if centre >= 4 else -np.inf
     hi = sample[centre + 5] if centre + 5 < n_sample else np.inf
     below = 0
     inside = 0
-    for t in range(rows.size):
-        run = block_sorted[rows[t], lo_bin:hi_bin]
-        for j in range(width):
-            v = run[j]
-            if v < lo:
-                below += 1
-            elif v <= hi:
-                buffer[inside] = v
-                inside += 1
-            else:
-                break
+    for i in range(n):
+        v = values[i]
+        if v < lo:
+            below += 1
+        elif v <= hi:
+            buffer[inside] = v
+            inside += 1
     if below <= k < below + inside:
         return _select(buffer, inside, k - below)
-    n = 0
-    for t in range(rows.size):
-        for f in range(lo_bin, hi_bin):
-            scratch[n] = block_sorted[rows[t], f]
-            n += 1
-    return _select(scratch, n, k)
+    return _select(values, n, k)
 
 
 @njit(cache=True, error_model="numpy")
-def _noise_floor(block_sorted: FloatArray, rows: IntArray, edges: IntArray,
-                 interp_index: IntArray, centres: FloatArray, scale: float, quantile: float,
-                 scratch: FloatArray, buffer: FloatArray, out: FloatArray) -> None:
-    """:func:`~tracker.audio.localizers.spectra.noise_floor` of the frames ``rows`` into ``out``.
-
-    ``block_sorted`` (n_stft, n_freq) is each frame's power with every block's bins sorted.
-    """
+def _noise_floor(power: FloatArray, rows: IntArray, edges: IntArray, interp_index: IntArray,
+                 centres: FloatArray, scale: float, quantile: float, scratch: FloatArray,
+                 buffer: FloatArray, out: FloatArray) -> None:
+    """:func:`~tracker.audio.localizers.spectra.noise_floor` of the frames ``rows`` into ``out``."""
     n_t = rows.size
     n_blocks = edges.size - 1
     floors = np.empty(n_blocks)
     sample = np.empty(_SAMPLE)
     for b in range(n_blocks):
-        n = n_t * (edges[b + 1] - edges[b])
-        floors[b] = _kth_of_sorted_runs(block_sorted, rows, edges[b], edges[b + 1],
-                                        int(quantile * (n - 1)), sample, scratch, buffer)
+        n = 0
+        for t in range(n_t):
+            row = power[rows[t]]
+            for f in range(edges[b], edges[b + 1]):
+                scratch[n] = row[f]
+                n += 1
+        floors[b] = _kth_smallest(scratch, n, int(quantile * (n - 1)), sample, buffer)
     last = n_blocks - 1
     for f in range(out.size):
         x = float(f)
@@ -227,8 +218,8 @@ def _phat(acc_re: FloatArray, acc_im: FloatArray, weights: FloatArray, phat_beta
 
 @njit(cache=True, error_model="numpy")
 def weighted_cross_spectra(
-    cross_re: FloatArray, cross_im: FloatArray, power: FloatArray, block_sorted: FloatArray,
-    rising: FloatArray, rows: IntArray, first_bin: int, edges: IntArray, interp_index: IntArray,
+    cross_re: FloatArray, cross_im: FloatArray, power: FloatArray, rising: FloatArray,
+    rows: IntArray, first_bin: int, edges: IntArray, interp_index: IntArray,
     centres: FloatArray, noise_scale: float, quantile: float, snr_exponent: float, cap: float, onset: bool,
     onset_power: float, phat_beta: float, confidence: bool,
 ) -> tuple[ComplexArray, ComplexArray]:
@@ -240,8 +231,6 @@ def weighted_cross_spectra(
         Every STFT frame's pair products ``X_i X_j*`` at the band's bins.
     power : ndarray, shape (n_stft, n_freq)
         Every frame's power averaged over the mics, at all bins.
-    block_sorted : ndarray, shape (n_stft, n_freq)
-        ``power`` with each noise-floor block's bins sorted (per frame).
     rising : ndarray, shape (n_stft, n_band)
         Every frame's power rise over the frame one hop earlier
         (:class:`~tracker.audio.localizers.frames.StftFrames`); read for a window's frames
@@ -310,7 +299,7 @@ def weighted_cross_spectra(
             if need_low:
                 low[b] = _quantile(scratch, n_t, quantile, smallest)
         if use_ratio:
-            _noise_floor(block_sorted, r, edges, interp_index, centres, noise_scale, quantile,
+            _noise_floor(power, r, edges, interp_index, centres, noise_scale, quantile,
                          scratch, buffer, noise)
         noise_band = noise[band]
         acc0_re[:] = 0.0
@@ -347,23 +336,6 @@ def weighted_cross_spectra(
         if second:
             _phat(acc1_re, acc1_im, weight1, phat_beta, out1[k])
     return out0, out1
-
-
-@njit(cache=True, error_model="numpy")
-def sort_blocks(power: FloatArray, edges: IntArray, rows: IntArray, out: FloatArray) -> None:
-    """``out[rows[k]] = power[k]`` with the bins of each block ``edges[i]..edges[i + 1]``
-    sorted (insertion sort: blocks are short)."""
-    for k in range(power.shape[0]):
-        target = out[rows[k]]
-        target[:] = power[k]
-        for b in range(edges.size - 1):
-            for i in range(edges[b] + 1, edges[b + 1]):
-                v = target[i]
-                j = i
-                while j > edges[b] and target[j - 1] > v:
-                    target[j] = target[j - 1]
-                    j -= 1
-                target[j] = v
 
 
 @njit(cache=True, error_model="numpy")

@@ -140,7 +140,7 @@ class SrpPhat:
     def new_frames(self) -> StftFrames:
         """An empty frame store with this localizer's FFT size and band."""
         return StftFrames(self.array.n_mics, self.settings.nfft, self._band_bins, self._first,
-                          self._second, self._edges, unit_magnitude=self.per_frame_phat)
+                          self._second, unit_magnitude=self.per_frame_phat)
 
     def frame_starts(self, start: int, n_samples: int) -> IntArray:
         """STFT frame starts of the window ``[start, start + n_samples)``; shape (n_frames,)."""
@@ -158,7 +158,7 @@ class SrpPhat:
         exponent = -1.0 if self.snr_exponent is None else float(self.snr_exponent)
         second = self.snr_exponent is not None and with_confidence
         direction, confidence = weighted_cross_spectra(
-            frames.cross_re, frames.cross_im, frames.power, frames.block_sorted, frames.rising,
+            frames.cross_re, frames.cross_im, frames.power, frames.rising,
             np.ascontiguousarray(rows, dtype=np.int64), int(self._band_bins[0]), self._edges,
             self._interp_index, self._centres,
             self._noise_scale, _NOISE_QUANTILE, exponent, _SNR_CAP, self.onset_weighting,
