@@ -22,11 +22,15 @@ from pathlib import Path
 
 import numpy as np
 
+from tracker.audio import room
+from tracker.audio.pipeline import FrameEstimate
 from tracker.scenarios.meeting import (
     _DT_S,
     _ON_TARGET_RAD,
     _SEATS,
+    CameraRun,
     MeetingSettings,
+    Turn,
     camera_result,
     meeting_frames,
 )
@@ -39,11 +43,16 @@ def _seeds(text: str) -> list[int]:
     return [int(v) for v in text.split(",")]
 
 
-def _frames(seed: int, duration_s: float, settings: MeetingSettings, cache: Path | None):
+MeetingData = tuple[room.Recording, tuple[Turn, ...], tuple[FrameEstimate, ...]]
+
+
+def _frames(seed: int, duration_s: float, settings: MeetingSettings, cache: Path | None
+            ) -> MeetingData:
     path = cache / f"meeting_{seed}_{duration_s:g}.pkl" if cache else None
     if path is not None and path.exists():
         with path.open("rb") as fh:
-            return pickle.load(fh)
+            cached: MeetingData = pickle.load(fh)
+            return cached
     data = meeting_frames(seed, duration_s, settings, estimate_fine=True)  # long windows scored
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -52,7 +61,8 @@ def _frames(seed: int, duration_s: float, settings: MeetingSettings, cache: Path
     return data
 
 
-def breakdown(recording, turns, run) -> dict[str, float]:
+def breakdown(recording: room.Recording, turns: tuple[Turn, ...], run: CameraRun
+              ) -> dict[str, float]:
     """Seconds of speech lost while framing and after framing (seated / walker)."""
     times, pan = run.times_s, run.pan_rad
     truth = recording.directions(times)[:, :, 0]
@@ -78,7 +88,8 @@ def breakdown(recording, turns, run) -> dict[str, float]:
     return out
 
 
-def frame_errors(recording, turns, frames) -> dict[str, float]:
+def frame_errors(recording: room.Recording, turns: tuple[Turn, ...],
+                 frames: tuple[FrameEstimate, ...]) -> dict[str, tuple[float, float]]:
     """Median / p90 error (deg) of short and long windows on speech frames of the active talker."""
     t = np.array([f.t_s for f in frames])
     truth = recording.directions(t)[:, :, 0]

@@ -25,29 +25,34 @@ from pathlib import Path
 
 import numpy as np
 
-from tracker.scenarios.meeting import MeetingSettings, build_meeting, camera_result
+from tracker.audio import room
+from tracker.audio.pipeline import FrameEstimate
+from tracker.scenarios.meeting import MeetingSettings, Turn, build_meeting, camera_result
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_meeting import _seeds, breakdown  # noqa: E402
 
 
-def _audio(seed: int, duration_s: float, settings: MeetingSettings, cache: Path | None):
+def _audio(seed: int, duration_s: float, settings: MeetingSettings, cache: Path | None
+           ) -> tuple[room.Recording, tuple[Turn, ...]]:
     path = cache / f"meeting_{seed}_{duration_s:g}.pkl" if cache else None
     if path is not None and path.exists():
         with path.open("rb") as fh:
             recording, turns, _ = pickle.load(fh)
-        return recording, turns
+        return recording, tuple(turns)
     from tracker.audio.array import load_array
     from tracker.scenarios.meeting import _ARRAYS_DIR
 
     return build_meeting(seed, duration_s, settings, load_array(_ARRAYS_DIR / settings.array_file))
 
 
-def _frames(seed: int, duration_s: float, recording, settings: MeetingSettings, cache: Path | None):
+def _frames(seed: int, duration_s: float, recording: room.Recording, settings: MeetingSettings,
+            cache: Path | None) -> tuple[FrameEstimate, ...]:
     path = cache / f"frames_{seed}_{duration_s:g}.pkl" if cache else None
     if path is not None and path.exists():
         with path.open("rb") as fh:
-            return pickle.load(fh)
+            cached: tuple[FrameEstimate, ...] = pickle.load(fh)
+            return cached
     from tracker.audio.array import load_array
     from tracker.scenarios.meeting import _ARRAYS_DIR, _pipeline
 

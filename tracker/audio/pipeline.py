@@ -15,8 +15,9 @@ from tracker.audio.localizers.frames import StftFrames
 from tracker.audio.localizers.spectra import GccTable, SrpGrid
 from tracker.audio.localizers.srp_phat import SrpPhat
 from tracker.audio.map_tracking import MapTracker, MapTrackerSettings
-from tracker.audio.trackers import TRACKERS, TrackerName
-from tracker.audio.trackers import choose_tracker as choose_tracker  # re-exported
+from tracker.audio.trackers import TRACKERS as TRACKERS  # re-exported
+from tracker.audio.trackers import TrackerName as TrackerName
+from tracker.audio.trackers import choose_tracker as choose_tracker
 from tracker.audio.tracking import TalkerTracker, TrackerSettings, TrackPoint
 from tracker.audio.vad import SpeechDetector, VadSettings
 from tracker.errors import ConfigError, DataError
