@@ -12,11 +12,12 @@ from tracker.errors import ConfigError
 
 def register(subparsers: Any) -> None:
     """Add ``camera-emulator`` to the ``tracker`` command."""
+    from tracker.cli import command_help
     from tracker.drivers.camera_profiles import DEFAULT_PROFILE, profile_names
 
     p = subparsers.add_parser(
         "camera-emulator",
-        help="emulate a PTZ camera (VISCA over IP on UDP, or raw VISCA on TCP) on 127.0.0.1",
+        help=command_help("camera-emulator"),
         description="A VISCA camera backed by a twin of a PTZ head (speed table, acceleration, "
         "backlash, position counts, zoom, presets), with packet loss and latency injection. Point "
         "the console at it with driver = \"visca+udp://127.0.0.1:PORT\".",

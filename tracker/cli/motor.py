@@ -10,11 +10,12 @@ from typing import Any
 
 def register(subparsers: Any) -> None:
     """Add ``motor-emulator`` to the ``tracker`` command."""
+    from tracker.cli import command_help
     from tracker.drivers.motor_board import SEED_COUNTS_PER_REV, SEED_GEAR_RATIO
 
     p = subparsers.add_parser(
         "motor-emulator",
-        help="emulate the DC rig's serial motor controller on a pseudo-terminal",
+        help=command_help("motor-emulator"),
         description="A motor controller board (docs/serial-protocol.md) backed by the rig's twin (the "
         "pan and tilt presets, optional hidden effects), on a pty. Prints the device to open; point "
         "the console at it with driver = \"serial://DEVICE?baud=1000000\".",
