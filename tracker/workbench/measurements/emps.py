@@ -32,7 +32,7 @@ PUBLISHED_ASYMMETRIC = MappingProxyType(
     }
 )
 GTAU_N_PER_V = 35.15
-DEFAULT_DATA_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "emps"
+DEFAULT_DATA_DIR = Path(__file__).resolve().parents[4] / "shared" / "data" / "emps"
 
 
 def load_emps(path: str | Path) -> tuple[Measurement, float]:

@@ -102,7 +102,9 @@ def test_compiled_functions_take_no_default_arguments() -> None:
 
     from numba.core.registry import CPUDispatcher
 
-    from tracker.workbench.compare import compare, excite, states
+    from tracker.workbench.compare import compare
+    from tracker.workbench.experiments import excite
+    from tracker.workbench.measurements import states
 
     for module in (states, compare, excite):
         for name, obj in vars(module).items():
