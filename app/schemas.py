@@ -59,6 +59,9 @@ class StatusOut(BaseModel):
         description="what the engine steers: kind (sim | visca), url, and for a camera its profile, link "
                     "state (connecting | connected | reconnecting), command rate, round trips, retransmits")
     loop: LoopOut | None = Field(None, description="the control loop's timing")
+    settings_warnings: list[str] = Field(
+        default_factory=list, description="stored settings not restored at start-up, and why (the "
+                                          "defaults are in use; docs/operations.md)")
 
 
 class TrackingIn(Strict):
