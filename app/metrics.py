@@ -28,6 +28,8 @@ from prometheus_client.registry import Collector
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from app.guard import ROUTE_KEY
+
 CONTENT_TYPE = "text/plain; version=0.0.4; charset=utf-8"
 UNMATCHED = "<unmatched>"
 HTTP_BUCKETS_S = (0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
@@ -76,6 +78,9 @@ class Metrics:
 
 def route_template(scope: Scope) -> str:
     """The path template of the route ``scope`` reached (or would reach), else ``UNMATCHED``."""
+    found = scope.get(ROUTE_KEY)  # an API route, found by the request guard
+    if isinstance(found, str):
+        return found
     route = scope.get("route")
     path = getattr(route, "path", None)
     if isinstance(path, str):

@@ -11,7 +11,8 @@ Timing (:class:`LoopTiming`): a tick's *lateness* is how long after its due time
 an *overrun* is a tick that started after the next one was due (late by a whole period or
 more); a tick's *gap* is the time since the previous tick started (one period when on time),
 counted in buckets of ``GAP_BUCKETS`` periods (a histogram the service exports), and
-``last_tick_age_s`` how long ago the latest tick started (a loop stuck in a tick shows it growing). While the loop runs, the interpreter's switch interval is lowered to ``switch_interval_s``
+``last_tick_age_s`` how long ago the latest tick started (a loop stuck in a tick shows it
+growing). While the loop runs, the interpreter's switch interval is lowered to ``switch_interval_s``
 (default 0.5 ms, Python's is 5 ms): a thread waiting for the GIL asks its holder to let go
 after that long, so a busy web thread delays a tick by about that much, not 5 ms.
 
