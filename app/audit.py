@@ -13,6 +13,7 @@ keeps the newest ``max_rows`` entries (older ones are trimmed every 1 000 writes
 
 from __future__ import annotations
 
+import asyncio
 import json
 import time
 from collections.abc import Mapping
@@ -77,10 +78,13 @@ class AuditLog:
         self._writes = 0
         db.ensure_tables(SCHEMA)
 
-    def record(
+    async def record(
         self, who: Principal, action: str, target: str = "", detail: Mapping[str, Any] | None = None
     ) -> bool:
-        """Store an entry for ``who``; False when it repeats that key's previous one (coalesced)."""
+        """Store an entry for ``who``; False when it repeats that key's previous one (coalesced).
+
+        The write (an fsync: about 5 ms on this machine's disk) runs in a thread, so the event
+        loop serves other requests meanwhile; it has landed when this returns."""
         text = json.dumps(scrub(dict(detail or {})), separators=(",", ":"), sort_keys=True, default=str)
         now = time.time()
         entry = (action, str(target), text)
@@ -88,17 +92,21 @@ class AuditLog:
         if last is not None and last[0] == entry and now - last[1] < self.coalesce_s:
             self._last[who.key_id] = (entry, now)
             return False
+        await asyncio.to_thread(self._insert, who, entry, now)
+        self._last[who.key_id] = (entry, now)
+        return True
+
+    def _insert(self, who: Principal, entry: tuple[str, str, str], now: float) -> None:
+        action, target, text = entry
         with self.db.transaction() as c:
             c.execute(
                 "INSERT INTO audit (t_s, key_id, key_name, role, action, target, detail) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",
-                (now, who.key_id, who.name, who.role.name, action, str(target), text),
+                (now, who.key_id, who.name, who.role.name, action, target, text),
             )
             self._writes += 1
             if self._writes % TRIM_EVERY == 0:
                 c.execute("DELETE FROM audit WHERE id <= (SELECT MAX(id) FROM audit) - ?", (self.max_rows,))
-        self._last[who.key_id] = (entry, now)
-        return True
 
     def page(self, limit: int = 50, before_id: int | None = None) -> list[AuditEntry]:
         """Up to ``limit`` entries, newest first, older than entry ``before_id`` when given."""

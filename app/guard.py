@@ -26,6 +26,7 @@ from app.auth import KEY_HEADER, RequireRole, Role, lookup
 from app.errors import Forbidden, TooLarge, TooManyRequests, Unauthorized, error_response
 
 ROUTE_KEY = "tracker.route_template"  # set in the scope: the path template of the route found
+UNMATCHED = "<unmatched>"
 
 
 def client_address(scope: Scope) -> str:
@@ -83,6 +84,7 @@ class RequestGuard:
             if route.matches(probe)[0] == Match.FULL:
                 scope[ROUTE_KEY] = self.prefix + route.path  # the metrics' label (app/metrics.py)
                 return role, upload
+        scope[ROUTE_KEY] = UNMATCHED  # no API route: no need to look again
         return None, False
 
     def _check_key(self, svc: Any, scope: Scope, role: Role) -> Exception | None:  # noqa: ANN401

@@ -134,7 +134,7 @@ async def put_gains(axis: str, body: GainsIn, svc: Svc, who: Engineer) -> GainsO
         )
     svc.engine.set_gains(axis, cand)
     svc.console.gains_changed(axis, cand)
-    svc.audit.record(who, "gains.set", axis, {"changes": body.gains})
+    await svc.audit.record(who, "gains.set", axis, {"changes": body.gains})
     return await _gains_out(svc, who, axis)
 
 
@@ -166,7 +166,7 @@ async def put_model(axis: str, body: DesignModelIn, svc: Svc, who: Engineer) -> 
     except ConfigError as exc:
         raise Refused(str(exc), model_check=figures_deg(figures)) from None
     svc.console.model_changed(axis, version["model"], body.version_id)
-    svc.audit.record(who, "model.set", axis, {"version_id": body.version_id,
+    await svc.audit.record(who, "model.set", axis, {"version_id": body.version_id,
                                               "effects": version["model"]["effects"]})
     return await _gains_out(svc, who, axis, model_check=figures_deg(figures))
 

@@ -93,5 +93,5 @@ async def clear_faults(svc: Svc, who: Engineer) -> StatusOut:
     faults = list(driver.faults())
     driver.clear_faults()
     driver.enable()
-    svc.audit.record(who, "faults.clear", "", {"faults": faults})
+    await svc.audit.record(who, "faults.clear", "", {"faults": faults})
     return status_of(svc)

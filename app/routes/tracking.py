@@ -27,6 +27,6 @@ async def put_tracking(body: TrackingIn, svc: Svc, who: Operator) -> TrackingOut
     else:
         svc.engine.set_tracking(False)
     svc.console.tracking_changed(body.enabled)
-    svc.audit.record(who, "tracking.set", "", {"enabled": body.enabled})
+    await svc.audit.record(who, "tracking.set", "", {"enabled": body.enabled})
     st = svc.engine.status()
     return TrackingOut(tracking=bool(st.tracking), mode=str(st.mode))

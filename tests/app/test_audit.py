@@ -4,6 +4,7 @@ else; no entry holds a secret; a held jog button is one entry, not one per renew
 
 from __future__ import annotations
 
+import asyncio
 import json
 from collections.abc import Iterator
 from pathlib import Path
@@ -127,7 +128,8 @@ def test_a_secret_in_a_detail_is_redacted(tmp_path: Path) -> None:
 
     log = AuditLog(Database(tmp_path / "a.sqlite3"), coalesce_s=0.0)
     who = Principal(7, "ops", Role.admin)
-    assert log.record(who, "settings.set", "x", {"key": "abc", "note": "3dat_abcdef", "n": [1, {"token": 2}]})
+    detail = {"key": "abc", "note": "3dat_abcdef", "n": [1, {"token": 2}]}
+    assert asyncio.run(log.record(who, "settings.set", "x", detail))
     (entry,) = log.page()
     assert entry.detail == {"key": REDACTED, "note": REDACTED, "n": [1, {"token": REDACTED}]}
     assert (entry.key_id, entry.key_name, entry.role) == (7, "ops", "admin")

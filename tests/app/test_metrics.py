@@ -110,10 +110,13 @@ def test_jobs_and_heavy_work_are_counted_by_kind_and_outcome(mrig: Rig) -> None:
                 == 1.0, 30.0)
     assert value(scrape(mrig), "tracker_job_duration_seconds_count", kind="friction-id",
                  outcome="cancelled") == 1.0
-    r = mrig.client.get(f"{API}/axes/pan/gains", headers=mrig.h("viewer"))  # margins: heavy work
-    assert r.status_code == 200
+    before = value(scrape(mrig), "tracker_work_total", kind="gain_preview", outcome="ok")
+    r = mrig.client.post(f"{API}/axes/pan/gains/preview", headers=mrig.h("viewer"),
+                         json={"gains": {}, "amplitude_deg": 10, "duration_s": 1.0})  # heavy work
+    assert r.status_code == 200, r.text
     work = scrape(mrig)
-    assert value(work, "tracker_work_total", kind="gain_margins", outcome="ok") >= 1
+    assert value(work, "tracker_work_total", kind="gain_preview", outcome="ok") == before + 1
+    assert value(work, "tracker_work_duration_seconds_count", kind="gain_preview", outcome="ok") == before + 1
 
 
 def test_metrics_can_be_public_by_setting(tmp_path: Path) -> None:
