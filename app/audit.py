@@ -8,13 +8,15 @@ small JSON detail of the values asked for. Never a secret: a string that looks l
 
 A jog press is re-sent every 150 ms while the button is down: an entry identical to the same
 key's previous one (action, target, detail) within ``coalesce_s`` is not stored again. The log
-keeps the newest ``max_rows`` entries (older ones are trimmed every 1 000 writes).
+keeps the newest ``max_rows`` entries (older ones are trimmed every 1 000 writes). Each entry
+also goes to the service's log (logger ``app.audit``, INFO), so the journal says which key did what.
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -22,6 +24,8 @@ from typing import Any
 
 from app.auth import KEY_PREFIX, Principal
 from app.db import Database
+
+log = logging.getLogger("app.audit")
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS audit (
@@ -94,6 +98,7 @@ class AuditLog:
             return False
         await asyncio.to_thread(self._insert, who, entry, now)
         self._last[who.key_id] = (entry, now)
+        log.info("audit: %s (%s, key %d) %s %s %s", who.name, who.role.name, who.key_id, action, target, text)
         return True
 
     def _insert(self, who: Principal, entry: tuple[str, str, str], now: float) -> None:

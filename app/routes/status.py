@@ -48,9 +48,11 @@ def loop_of(svc: Service) -> LoopOut | None:
     if timing is None:
         return None
     t = timing()
+    age_s = getattr(t, "last_tick_age_s", math.inf)
     return LoopOut(period_ms=1e3 * t.period_s, ticks=t.ticks, last_lateness_ms=1e3 * t.last_lateness_s,
                    max_lateness_ms=1e3 * t.max_lateness_s, mean_lateness_ms=1e3 * t.mean_lateness_s,
-                   overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority)
+                   overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority,
+                   last_tick_ms_ago=1e3 * age_s if math.isfinite(age_s) else None)
 
 
 @router.get("/status", response_model=StatusOut, summary="Angles (deg), mode, tracking, talker, faults")

@@ -53,6 +53,8 @@ def test_a_stalled_control_loop_is_503_and_recovers(hrig: Rig) -> None:
         assert body["ok"] is False and body["error"] == "Unhealthy"
         assert "control loop stalled" in body["detail"] and body["last_tick_age_s"] > 0.3
         assert body["engine_running"] is True  # the task is alive: only the ticks say it is stuck
+        loop = hrig.client.get(f"{API}/status", headers=hrig.h("viewer")).json()["loop"]
+        assert loop["last_tick_ms_ago"] > 300.0
     finally:
         engine.step_chunk = original
         release.set()
