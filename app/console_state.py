@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from app.modelio import model_from_json
@@ -67,40 +69,48 @@ class ConsoleState:
         """The axis's controller was redesigned on ``model_json``: store it, drop its old gains."""
         value = {"model": model_json, "version_id": version_id}
         self.store.write({model_key(axis): value}, deletes=[gains_key(axis)], version=VERSION)
-        self._clear_warnings(model_key(axis), gains_key(axis))
+        self.clear_warnings(model_key(axis), gains_key(axis))
 
     def gains_changed(self, axis: str, gains: Any) -> None:  # noqa: ANN401 - a gains dataclass
         self.store.write({gains_key(axis): gains_json(gains)}, version=VERSION)
-        self._clear_warnings(gains_key(axis))
+        self.clear_warnings(gains_key(axis))
 
     def tracking_changed(self, enabled: bool) -> None:
         self.store.write({TRACKING_KEY: {"enabled": bool(enabled)}}, version=VERSION)
-        self._clear_warnings(TRACKING_KEY)
+        self.clear_warnings(TRACKING_KEY)
 
     # -- at start-up ------------------------------------------------------------------------
     def restore(self, engine: Any) -> list[str]:  # noqa: ANN401 - the engine
         """Apply what is stored to ``engine`` (before its loop runs); returns the warnings."""
         self.warnings = []
         for axis in AXES:
-            self._restore(model_key(axis), lambda value, a=axis: self._apply_model(engine, a, value))
-            self._restore(gains_key(axis), lambda value, a=axis: self._apply_gains(engine, a, value))
-        self._restore(TRACKING_KEY, lambda value: self._apply_tracking(engine, value))
+            self.restore_setting(model_key(axis), partial(self._apply_model, engine, axis))
+            self.restore_setting(gains_key(axis), partial(self._apply_gains, engine, axis))
+        self.restore_setting(TRACKING_KEY, lambda value: self._apply_tracking(engine, value))
         return list(self.warnings)
 
-    def _restore(self, key: str, apply: Any) -> None:  # noqa: ANN401 - a callable
+    def restore_setting(self, key: str, apply: Callable[[Any], object], version: int = VERSION) -> bool:
+        """Read ``key`` and hand its value to ``apply`` (which validates and applies it, raising
+        TrackerError, ValueError, TypeError, KeyError or ArithmeticError to refuse it).
+
+        Any part of the service restores its own settings this way (the audio policy, say): a
+        refused, unreadable or other-version value is logged and listed in :attr:`warnings`
+        (status shows them), and False is returned: keep the default. True when applied; False
+        too when nothing is stored."""
         try:
             stored = self.store.get(key)
             if stored is None:
-                return
-            if stored.version != VERSION:
-                raise ValueError(f"stored with version {stored.version}; this service reads {VERSION}")
+                return False
+            if stored.version != version:
+                raise ValueError(f"stored with version {stored.version}; this service reads {version}")
             what = apply(stored.value)
         except (TrackerError, ValueError, TypeError, KeyError, ArithmeticError) as exc:
             message = f"{key}: stored value not restored, default kept ({type(exc).__name__}: {exc})"
             log.warning("%s", message)
             self.warnings.append(message)
-        else:
-            log.info("restored %s: %s", key, what)
+            return False
+        log.info("restored %s: %s", key, what)
+        return True
 
     @staticmethod
     def _apply_model(engine: Any, axis: str, value: dict[str, Any]) -> str:  # noqa: ANN401
@@ -133,6 +143,6 @@ class ConsoleState:
         engine.set_tracking(enabled)
         return "on" if enabled else "off"
 
-    def _clear_warnings(self, *keys: str) -> None:
-        """A setting changed since start-up: its restore warning no longer applies."""
+    def clear_warnings(self, *keys: str) -> None:
+        """``keys`` were set anew since start-up: their restore warnings no longer apply."""
         self.warnings = [w for w in self.warnings if not w.startswith(tuple(k + ":" for k in keys))]
