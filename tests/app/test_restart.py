@@ -163,3 +163,26 @@ def test_kill_9_mid_write_leaves_one_whole_generation(tmp_path: Path, kill_after
     rows = SettingsStore(Database(path)).get_prefix("k")
     gens = {json.dumps(s.value["gen"]) for s in rows.values()}
     assert len(rows) in {0, 300} and len(gens) <= 1, gens
+
+
+def test_restore_setting_is_how_any_part_restores_its_own(tmp_path: Path) -> None:
+    """The generic path other parts use (e.g. the audio policy): applied when the check passes;
+    logged, listed and skipped when it refuses or the stored shape has another version."""
+    state = console_state.ConsoleState(SettingsStore(Database(tmp_path / "s.sqlite3")))
+    state.store.write({"audio.policy": {"hold_s": 2.0}}, version=2)
+    applied: list[float] = []
+
+    def apply(value: dict[str, float]) -> str:
+        if not 0.0 < value["hold_s"] <= 10.0:
+            raise ValueError(f"hold_s {value['hold_s']} outside (0, 10]")
+        applied.append(value["hold_s"])
+        return "ok"
+
+    assert state.restore_setting("audio.policy", apply, version=2) is True and applied == [2.0]
+    assert state.restore_setting("audio.nothing", apply) is False and state.warnings == []
+    assert state.restore_setting("audio.policy", apply, version=3) is False
+    state.store.write({"audio.policy": {"hold_s": 99.0}}, version=2)
+    assert state.restore_setting("audio.policy", apply, version=2) is False and applied == [2.0]
+    assert len(state.warnings) == 2 and "hold_s 99.0 outside" in state.warnings[1]
+    state.clear_warnings("audio.policy")
+    assert state.warnings == []
