@@ -19,7 +19,7 @@ PATHS = ("/health", f"{API}/health")
 
 @pytest.fixture
 def hrig(tmp_path: Path) -> Iterator[Rig]:
-    yield from make_rig(tmp_path, health_stall_s=0.3)
+    yield from make_rig(tmp_path, health_stall_s=1.5)  # a busy CI machine gaps ticks ~0.5 s
 
 
 def svc_of(rig: Rig) -> Any:  # noqa: ANN401 - app.service.Service, reached in-process
@@ -27,7 +27,11 @@ def svc_of(rig: Rig) -> Any:  # noqa: ANN401 - app.service.Service, reached in-p
 
 
 def health(rig: Rig) -> tuple[int, dict[str, Any]]:
-    answers = [rig.client.get(p) for p in PATHS]
+    """Both paths' answer (asked until they agree: the state may change between two requests)."""
+    for _ in range(20):
+        answers = [rig.client.get(p) for p in PATHS]
+        if answers[0].status_code == answers[1].status_code:
+            break
     assert answers[0].status_code == answers[1].status_code
     return answers[1].status_code, answers[1].json()
 
@@ -37,7 +41,7 @@ def healthy(rig: Rig) -> bool:
 
 
 def test_a_stalled_control_loop_is_503_and_recovers(hrig: Rig) -> None:
-    assert poll(lambda: healthy(hrig), 10.0), health(hrig)
+    assert poll(lambda: healthy(hrig), 30.0), health(hrig)
     engine = svc_of(hrig).engine
     release = threading.Event()
     original = engine.step_chunk
@@ -48,32 +52,31 @@ def test_a_stalled_control_loop_is_503_and_recovers(hrig: Rig) -> None:
 
     engine.step_chunk = stuck
     try:
-        assert poll(lambda: health(hrig)[0] == 503, 5.0)
+        assert poll(lambda: health(hrig)[0] == 503, 30.0)
         status, body = health(hrig)
         assert body["ok"] is False and body["error"] == "Unhealthy"
-        assert "control loop stalled" in body["detail"] and body["last_tick_age_s"] > 0.3
+        assert "control loop stalled" in body["detail"] and body["last_tick_age_s"] > 1.5
         assert body["engine_running"] is True  # the task is alive: only the ticks say it is stuck
         loop = hrig.client.get(f"{API}/status", headers=hrig.h("viewer")).json()["loop"]
-        assert loop["last_tick_ms_ago"] > 300.0
+        assert loop["last_tick_ms_ago"] > 1500.0
     finally:
         engine.step_chunk = original
         release.set()
-    assert poll(lambda: healthy(hrig), 5.0), health(hrig)
-    assert health(hrig)[1]["reasons"] == []
+    assert poll(lambda: (h := health(hrig))[0] == 200 and h[1]["reasons"] == [], 30.0), health(hrig)
 
 
 def test_a_faulted_drive_is_503_until_cleared(hrig: Rig) -> None:
-    assert poll(lambda: healthy(hrig), 10.0)
+    assert poll(lambda: healthy(hrig), 30.0)
     svc_of(hrig).engine.driver.latch_fault("pan: over-travel (test)")
     status, body = health(hrig)
     assert status == 503 and body["faults"] == ["pan: over-travel (test)"]
     assert "drive fault latched: pan: over-travel (test)" in body["reasons"]
     assert hrig.client.post(f"{API}/faults/clear", headers=hrig.h("engineer")).status_code == 200
-    assert healthy(hrig)
+    assert poll(lambda: healthy(hrig), 30.0)
 
 
 def test_a_stopped_engine_is_503(hrig: Rig) -> None:
-    assert poll(lambda: healthy(hrig), 10.0)
+    assert poll(lambda: healthy(hrig), 30.0)
     svc_of(hrig).engine.stop()
-    assert poll(lambda: health(hrig)[0] == 503, 5.0)
+    assert poll(lambda: health(hrig)[0] == 503, 30.0)
     assert health(hrig)[1]["reasons"] == ["the engine loop is not running"]
