@@ -24,8 +24,9 @@ from app.service import Service
 from app.settings import Settings, load_settings
 from tracker.errors import ConfigError
 from tracker.plant.effects import load_effect_modules
+from tracker.resources import project_dir
 
-STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
+STATIC_DIR = project_dir("static")
 API_PREFIX = "/api/v1"
 
 DESCRIPTION = """

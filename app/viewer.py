@@ -72,8 +72,9 @@ def load_mics(path: Path | None) -> np.ndarray:
     """Microphone positions (n_mics, 3) in metres from an array JSON (validated by
     ``tracker.audio.array.load_array``); the shipped 4-mic square by default (as the meeting)."""
     from tracker.audio.array import load_array
+    from tracker.resources import project_dir
 
-    default = Path(__file__).resolve().parent.parent / "examples" / "arrays" / "square4_65mm.json"
+    default = project_dir("examples") / "arrays" / "square4_65mm.json"
     return np.asarray(load_array(path or default).positions_m, dtype=float)
 
 
