@@ -24,6 +24,7 @@ from app.db import Database
 from app.jobs import JobRunner
 from app.settings import Settings
 from app.telemetry import TelemetryHub
+from app.view_proxy import ViewSessions
 from app.work import WorkPool
 from app.workers import WorkerPool
 
@@ -51,6 +52,7 @@ class Service:
         self.engine: Any = None
         self.audio: Any = None
         self.viewer: Any = None
+        self.view_sessions = ViewSessions()
         self.audio_note: str | None = None
         self._engine_task: asyncio.Task[None] | None = None
 
@@ -94,6 +96,7 @@ class Service:
         """Revoke a key everywhere at once: stored, its WebSockets closed, its manual control freed."""
         self.db.revoke_key(key_id)
         self.hub.disconnect_key(key_id, "API key revoked")
+        self.view_sessions.end_key(key_id)
         self.lock.release_key(key_id)
 
     async def stop(self) -> None:

@@ -1,5 +1,6 @@
 """The viser 3D view of the rig: mount and camera frustum turning live, microphone array, talker
-estimate and current target. Runs on its own port, bound to loopback by default.
+estimate and current target. viser runs on its own port, bound to loopback by default; browsers
+reach it through the console (``/api/v1/view/``, same origin, same keys: app/view_proxy.py).
 
 viser has no authentication, so the share-URL feature (a public tunnel through an outside relay
 that any connected client can request with one message) is disabled for real: the server's
@@ -20,6 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from app.view_proxy import VIEW_PATH
 
 log = logging.getLogger("app.viewer")
 
@@ -229,7 +232,8 @@ class RigViewer:
     def scene_state(self) -> dict[str, Any]:
         """What the 3D scene shows now, read back from the viser handles (degrees)."""
         return {
-            "url": f"http://{self.host}:{self.port}/",
+            "url": VIEW_PATH + "/",  # through the console, with its keys (app/view_proxy.py)
+            "direct_url": f"http://{self.host}:{self.port}/",  # viser itself: no authentication
             "port": self.port,
             "pan_deg": round(math.degrees(angle_about_z(self.pan_frame.wxyz)), 3),
             "tilt_deg": round(-math.degrees(angle_about_y(self.tilt_frame.wxyz)), 3),

@@ -2,7 +2,19 @@
 
 from __future__ import annotations
 
-from app.routes import gains, jobs, keys, pointing, practice, presets, status, telemetry, tracking, workbench
+from app.routes import (
+    gains,
+    jobs,
+    keys,
+    pointing,
+    practice,
+    presets,
+    status,
+    telemetry,
+    tracking,
+    view,
+    workbench,
+)
 
 ALL_ROUTERS = (
     status.router,
@@ -15,4 +27,5 @@ ALL_ROUTERS = (
     practice.router,
     telemetry.router,
     keys.router,
+    view.router,
 )
