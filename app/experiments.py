@@ -6,7 +6,7 @@ engine records t, u, theta (``Engine.start_recording``). Only the target scripts
 - ``sine_sweep``: a chirp 0.2 → 3 Hz around the centre, amplitude falling with frequency;
 - ``slow_ramps``: triangles between random points at 2–25 °/s (low speed, reversals);
 - ``mixed``: the workbench's own closed-loop excitation (steps, ramps and a sweep, with dither
-  and a disturbance torque) from ``tracker.workbench.experiments.generate_measurement``.
+  and a disturbance torque) from ``tracker.workbench.experiments.experiments.generate_measurement``.
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ def record_experiment(truth: Any, axis: str, kind: str, duration_s: float, seed:
     if kind not in EXPERIMENTS:
         raise ConfigError(f"unknown experiment {kind!r}; experiments: {', '.join(EXPERIMENTS)}")
     if kind == "mixed":
-        from tracker.workbench.experiments import generate_measurement
+        from tracker.workbench.experiments.experiments import generate_measurement
 
         return generate_measurement(truth, duration_s=duration_s, seed=seed)
     from tracker.control.limits import SoftLimits

@@ -14,8 +14,8 @@ from typing import Any
 from app.modelio import decimate_index, model_from_json, model_to_json, plain, series_deg
 from tracker.plant.effects import get_effect
 from tracker.plant.model import AxisModel
-from tracker.workbench.compare import compare_model
-from tracker.workbench.data import Measurement, parse_log
+from tracker.workbench.compare.compare import compare_model
+from tracker.workbench.measurements.data import Measurement, parse_log
 
 
 def fit_summary(meas: Measurement, model: AxisModel, extra: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -46,7 +46,7 @@ def first_version(
 ) -> dict[str, Any]:
     """Parse a log and fit the axis' base model (plus ``effects``, K overridden by
     ``gain_nm_per_v``) to it: ``{"n", "dt_s", "model", "fit"}``. DataError/ConfigError when bad."""
-    from tracker.workbench.fit import fit_model
+    from tracker.workbench.fit.fit import fit_model
 
     model = AxisModel.for_axis(axis, effects, gain_nm_per_v=gain_nm_per_v)
     meas = parse_log(text, label)
@@ -83,7 +83,7 @@ def compare(
 
 def diagnose(text: str, label: str, model_json: dict[str, Any]) -> dict[str, Any]:
     """The missing effects of a model version, ranked."""
-    from tracker.workbench.diagnose import diagnose as rank
+    from tracker.workbench.diagnose.diagnose import diagnose as rank
 
     return plain(rank(parse_log(text, label), model_from_json(model_json)).to_dict())
 
@@ -98,7 +98,7 @@ def refit(
 ) -> dict[str, Any]:
     """Refit a version's parameters (``free`` only, when given), or add ``add_effect`` and refit
     every parameter (K fixed): ``{"model", "fit"}`` of the new version."""
-    from tracker.workbench.fit import fit_model
+    from tracker.workbench.fit.fit import fit_model
 
     meas = parse_log(text, label)
     model = model_from_json(model_json)
@@ -115,7 +115,7 @@ def practice_run(
     """Record one experiment on the practice rig and fit its first version:
     ``{"csv", "n", "dt_s", "model", "fit"}``."""
     from app.experiments import record_experiment
-    from tracker.workbench.data import format_log
+    from tracker.workbench.measurements.data import format_log
 
     meas = record_experiment(model_from_json(truth_json), axis, kind, duration_s, seed)
     text = format_log(meas)
@@ -212,5 +212,5 @@ def gain_preview(
 def warm_up() -> None:
     """Import what the heavy work needs (a new worker's first request is then not slower)."""
     import tracker.control.design
-    import tracker.workbench.diagnose
-    import tracker.workbench.fit  # noqa: F401
+    import tracker.workbench.diagnose.diagnose
+    import tracker.workbench.fit.fit  # noqa: F401

@@ -156,7 +156,7 @@ def check_angle(axis: str, angle_deg: float, limit_deg: float) -> None:
 
 def random_practice_model(axis: str, seed: int) -> Any:
     """The seed's model of ``axis`` with one effect, picked by ``seed``, at random physical values."""
-    from tracker.workbench.experiments import HIDDEN_RANGES, random_hidden_model
+    from tracker.workbench.experiments.experiments import HIDDEN_RANGES, random_hidden_model
 
     names = sorted(HIDDEN_RANGES)
     effect = names[int(np.random.default_rng(seed).integers(len(names)))]

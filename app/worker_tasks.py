@@ -15,7 +15,7 @@ def friction_job(progress: Any, cancel: Any, rig_config: str | None, hidden_json
     """Friction-ID on a simulated rig built like the live one (``rig_config``) or like the
     practice rig (``hidden_json`` on ``hidden_axis``)."""
     from tracker.drivers.sim import SimDriver, rig_models
-    from tracker.workbench import friction_id
+    from tracker.workbench.experiments import friction_id
 
     if hidden_json is not None:
         hidden = model_from_json(hidden_json)

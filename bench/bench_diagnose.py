@@ -3,7 +3,7 @@
     .venv/bin/python bench/bench_diagnose.py [--seeds N] [--duration S]
 
 For each effect of the catalogue, N rigs with that effect hidden at random physical parameters
-(tracker.workbench.experiments.HIDDEN_RANGES) record a closed-loop run; the base model is
+(tracker.workbench.experiments.experiments.HIDDEN_RANGES) record a closed-loop run; the base model is
 diagnosed. Printed per effect: verdict rate, median and worst parameter error, fit % before →
 after adding the candidate. Plus the clean case (no verdict wanted) and pairs (both effects
 found one after the other, adding the verdict's refitted model between diagnoses), and the
@@ -18,8 +18,8 @@ import statistics
 import time
 
 from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose import diagnose
-from tracker.workbench.experiments import HIDDEN_RANGES, generate_measurement, random_hidden_model
+from tracker.workbench.diagnose.diagnose import diagnose
+from tracker.workbench.experiments.experiments import HIDDEN_RANGES, generate_measurement, random_hidden_model
 
 EFFECTS = tuple(HIDDEN_RANGES)
 PAIRS = (
@@ -139,7 +139,7 @@ def scorecard(seeds: int, duration_s: float) -> None:
 
 def emps() -> None:
     try:
-        from tracker.workbench.emps import DEFAULT_DATA_DIR, emps_model, load_emps
+        from tracker.workbench.measurements.emps import DEFAULT_DATA_DIR, emps_model, load_emps
 
         meas, _ = load_emps(DEFAULT_DATA_DIR / "DATA_EMPS.mat")
     except Exception as exc:  # noqa: BLE001 - the data is optional here

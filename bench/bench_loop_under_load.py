@@ -62,8 +62,8 @@ def free_port() -> int:
 def measurement_csv(seconds: float) -> str:
     """A closed-loop measurement of the pan twin with ripple the base model lacks."""
     from tracker.plant.model import AxisModel
-    from tracker.workbench.data import format_log
-    from tracker.workbench.experiments import generate_measurement
+    from tracker.workbench.experiments.experiments import generate_measurement
+    from tracker.workbench.measurements.data import format_log
 
     truth = AxisModel.for_axis("pan", ["ripple"], {"ripple.amplitude": 0.01, "ripple.cycles_per_rev": 12.0})
     return str(format_log(generate_measurement(truth, duration_s=seconds, seed=4)))

@@ -227,8 +227,11 @@ def main() -> int:
 
                 scenario("2000 bad keys in a row", frames, proc.pid, bad_keys)
             if args.compare_rows:
-                from tracker.workbench.data import format_log
-                from tracker.workbench.experiments import generate_measurement, random_hidden_model
+                from tracker.workbench.experiments.experiments import (
+                    generate_measurement,
+                    random_hidden_model,
+                )
+                from tracker.workbench.measurements.data import format_log
 
                 small = format_log(generate_measurement(random_hidden_model("pan", ["offset"], 1), 5.0, 1))
                 eh = {

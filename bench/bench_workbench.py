@@ -17,11 +17,11 @@ import time
 from collections.abc import Callable
 
 from tracker.plant.model import AxisModel
-from tracker.workbench.compare import compare_model
-from tracker.workbench.data import Measurement
-from tracker.workbench.emps import DEFAULT_DATA_DIR, PUBLISHED_PARAMS, emps_model, load_emps
-from tracker.workbench.excite import closed_loop_log
-from tracker.workbench.fit import fit_model
+from tracker.workbench.compare.compare import compare_model
+from tracker.workbench.experiments.excite import closed_loop_log
+from tracker.workbench.fit.fit import fit_model
+from tracker.workbench.measurements.data import Measurement
+from tracker.workbench.measurements.emps import DEFAULT_DATA_DIR, PUBLISHED_PARAMS, emps_model, load_emps
 
 RECOVERY = {
     "base": {},

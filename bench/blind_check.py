@@ -25,7 +25,7 @@ from numba import njit
 
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import advance, encoder_rad, pack_params
-from tracker.workbench.data import Measurement, write_log
+from tracker.workbench.measurements.data import Measurement, write_log
 
 DT_S = 1e-3
 

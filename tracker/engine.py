@@ -66,7 +66,7 @@ from tracker.realtime import LoopTiming, PacedLoop
 from tracker.recording import RecentLog, Recorder
 from tracker.targets import TargetSource, as_target
 from tracker.telemetry import EngineStatus, TelemetrySnapshot, TelemetrySubscription
-from tracker.workbench.data import Measurement
+from tracker.workbench.measurements.data import Measurement
 
 MODES = ("tracking", "manual", "hold", "disabled", "fault")
 

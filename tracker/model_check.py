@@ -3,7 +3,7 @@
 The engine keeps the last ``RECENT_S`` of (t, u, θ) of each axis (:class:`tracker.recording.RecentLog`).
 Before :meth:`tracker.engine.Engine.set_model` replaces the controller's model, the candidate
 must predict that motion: the workbench's k-step comparison
-(:func:`tracker.workbench.compare.compare_model`, horizon ``DEFAULT_HORIZON_S`` = 30 ms)
+(:func:`tracker.workbench.compare.compare.compare_model`, horizon ``DEFAULT_HORIZON_S`` = 30 ms)
 gives the RMS error X of the candidate and Y of the current model on the same states.
 
 The limit Z is what the current model would score with its inertia off by a factor of two
@@ -34,9 +34,9 @@ import numpy as np
 
 from tracker.errors import ConfigError, DataError
 from tracker.plant.model import AxisModel
-from tracker.workbench.compare import DEFAULT_HORIZON_S, compare_model, horizon_samples
-from tracker.workbench.data import Measurement
-from tracker.workbench.states import estimate_states
+from tracker.workbench.compare.compare import DEFAULT_HORIZON_S, compare_model, horizon_samples
+from tracker.workbench.measurements.data import Measurement
+from tracker.workbench.measurements.states import estimate_states
 
 # Seconds of recent motion the engine keeps per axis and checks models against.
 RECENT_S = 10.0

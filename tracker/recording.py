@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.errors import ConfigError, DataError
-from tracker.workbench.data import MIN_SAMPLES, Measurement, write_log
+from tracker.workbench.measurements.data import MIN_SAMPLES, Measurement, write_log
 
 
 class Recorder:

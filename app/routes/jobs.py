@@ -1,7 +1,7 @@
 """Jobs: friction-ID (start, progress, cancel, result) and the list of recent jobs.
 
 Friction-ID runs the seed's experiment automated — constant voltages across the range, the
-steady speed of each — through ``tracker.workbench.friction_id`` on a simulated rig built like
+steady speed of each — through ``tracker.workbench.experiments.friction_id`` on a simulated rig built like
 the live one (``source="rig"``) or like the practice rig (``source="practice"``), in a worker
 process, so the live camera keeps tracking, on time, while the job runs. On real hardware the
 job would take the axis over.

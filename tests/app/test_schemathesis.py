@@ -24,8 +24,8 @@ from schemathesis.python.asgi import get_client, shutdown_lifespans  # noqa: E40
 
 from app.main import API_PREFIX, create_app  # noqa: E402
 from app.settings import load_settings  # noqa: E402
-from tracker.workbench.data import format_log  # noqa: E402
-from tracker.workbench.experiments import generate_measurement, random_hidden_model  # noqa: E402
+from tracker.workbench.experiments.experiments import generate_measurement, random_hidden_model  # noqa: E402
+from tracker.workbench.measurements.data import format_log  # noqa: E402
 
 from .conftest import free_port  # noqa: E402
 

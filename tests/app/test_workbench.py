@@ -7,8 +7,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tracker.workbench.data import format_log
-from tracker.workbench.experiments import generate_measurement, random_hidden_model
+from tracker.workbench.experiments.experiments import generate_measurement, random_hidden_model
+from tracker.workbench.measurements.data import format_log
 
 from .conftest import Rig
 

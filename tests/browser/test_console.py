@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from tracker.workbench.data import format_log
-from tracker.workbench.experiments import generate_measurement, random_hidden_model
+from tracker.workbench.experiments.experiments import generate_measurement, random_hidden_model
+from tracker.workbench.measurements.data import format_log
 
 from .conftest import Server
 

@@ -396,7 +396,7 @@ def read_encoder_log(path: str | Path) -> HeadPoses:
 
 
 def _from_engine_recording(pan_log: Path, tilt_log: Path) -> HeadPoses:
-    from tracker.workbench.data import read_log
+    from tracker.workbench.measurements.data import read_log
 
     pan, tilt = read_log(pan_log), read_log(tilt_log)
     tilt_at = np.interp(pan.t_s, tilt.t_s, tilt.theta_rad)

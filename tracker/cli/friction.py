@@ -26,7 +26,7 @@ from tracker.errors import ConfigError
 if TYPE_CHECKING:  # the engine is imported when the command runs, not for --help
     from tracker.drivers.motor import MotorDriver
     from tracker.drivers.sim import SimDriver
-    from tracker.workbench.friction_id import FrictionResult
+    from tracker.workbench.experiments.friction_id import FrictionResult
 
 
 def _rig(args: argparse.Namespace) -> SimDriver:
@@ -101,7 +101,7 @@ def _serial_rig(args: argparse.Namespace) -> MotorDriver:
 
 def run(args: argparse.Namespace) -> int:
     """``tracker friction-id``."""
-    from tracker.workbench.friction_id import run_friction_id
+    from tracker.workbench.experiments.friction_id import run_friction_id
 
     driver = _serial_rig(args) if args.driver else _rig(args)
     try:

@@ -24,9 +24,9 @@ import numpy as np
 from tracker.errors import ConfigError, TrackerError
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
-from tracker.workbench.compare import CompareResult, compare_model
-from tracker.workbench.data import Measurement, read_log
-from tracker.workbench.fit import FitResult, fit_model
+from tracker.workbench.compare.compare import CompareResult, compare_model
+from tracker.workbench.fit.fit import FitResult, fit_model
+from tracker.workbench.measurements.data import Measurement, read_log
 
 
 def _effects(text: str | None) -> tuple[str, ...]:
@@ -202,7 +202,7 @@ def run_fit(args: argparse.Namespace) -> int:
 @_guard
 def run_emps_convert(args: argparse.Namespace) -> int:
     """``tracker model emps-convert``."""
-    from tracker.workbench.emps import convert_emps
+    from tracker.workbench.measurements.emps import convert_emps
 
     meas = convert_emps(args.mat, args.out)
     print(f"wrote {args.out}: {meas.n} samples (t s, u = vir V, theta = qm m); use --gain 35.15 (N/V)")
@@ -221,7 +221,7 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
     """
     import textwrap
 
-    from tracker.workbench.diagnose import Candidate, Diagnosis, diagnose
+    from tracker.workbench.diagnose.diagnose import Candidate, Diagnosis, diagnose
 
     def card(i: int, c: Candidate, width: int = 100) -> list[str]:
         mark = "SIGNIFICANT" if c.significant else (c.finding or "not significant")

@@ -19,7 +19,7 @@ from tracker.control.trajectory import DEFAULT_LIMITS
 from tracker.errors import ConfigError
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import initial_state, pack_params
-from tracker.workbench.data import Measurement
+from tracker.workbench.measurements.data import Measurement
 
 DT_S = 1e-3
 

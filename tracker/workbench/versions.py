@@ -22,8 +22,8 @@ from types import MappingProxyType
 
 from tracker.errors import ConfigError, DataError
 from tracker.plant.model import AxisModel
-from tracker.workbench.data import Measurement
-from tracker.workbench.fit import FitResult, fit_model
+from tracker.workbench.fit.fit import FitResult, fit_model
+from tracker.workbench.measurements.data import Measurement
 
 _NAME = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 

@@ -29,7 +29,7 @@ from tracker.audio.stream import StreamingLocator, stream_blocks
 from tracker.errors import ConfigError, DataError
 from tracker.recording import write_measurements
 from tracker.scenarios.meeting import MeetingSettings
-from tracker.workbench.data import Measurement
+from tracker.workbench.measurements.data import Measurement
 
 from .conftest import FS_HZ, angle_error_deg, example_array, free_field
 

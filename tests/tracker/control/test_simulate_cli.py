@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from tracker.cli import main
-from tracker.workbench.data import read_log
+from tracker.workbench.measurements.data import read_log
 
 ISSUE_KEYS = {
     "phase_margin_deg",

@@ -250,7 +250,7 @@ async def test_the_engine_steers_the_serial_rig_and_a_lost_port_is_a_fault(
 
 @pytest.mark.slow
 def test_friction_id_runs_on_the_emulator(driver: SerialMotorDriver) -> None:
-    from tracker.workbench.friction_id import run_friction_id
+    from tracker.workbench.experiments.friction_id import run_friction_id
 
     res = run_friction_id(driver, "pan", voltages_per_direction=4)
     for line in (res.positive, res.negative):

@@ -5,8 +5,8 @@ from __future__ import annotations
 from functools import cache
 
 from tracker.plant.model import AxisModel
-from tracker.workbench.data import Measurement
-from tracker.workbench.experiments import generate_measurement, random_hidden_model
+from tracker.workbench.experiments.experiments import generate_measurement, random_hidden_model
+from tracker.workbench.measurements.data import Measurement
 
 DURATION_S = 24.0
 

@@ -7,8 +7,8 @@ import pytest
 
 from tracker.cli import main
 from tracker.plant.model import AxisModel
-from tracker.workbench.data import write_log
-from tracker.workbench.excite import closed_loop_log
+from tracker.workbench.experiments.excite import closed_loop_log
+from tracker.workbench.measurements.data import write_log
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import pytest
 
 from tracker.errors import ConfigError, DataError
 from tracker.plant.model import AxisModel
-from tracker.workbench.excite import closed_loop_log
+from tracker.workbench.experiments.excite import closed_loop_log
 from tracker.workbench.versions import VersionStore, add_effect, first_version, remove_effect
 
 

@@ -1,0 +1,102 @@
+"""The friction-ID job on the simulated rig: it must recover the rig's friction, per direction."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tracker.cli import main
+from tracker.drivers.sim import SimDriver
+from tracker.errors import DataError, JobCancelled
+from tracker.plant.model import AxisModel
+from tracker.workbench.experiments.friction_id import run_friction_id
+
+
+def _rig(axis: str, effects: tuple[str, ...] = (), params: dict[str, float] | None = None) -> SimDriver:
+    other = "tilt" if axis == "pan" else "pan"
+    return SimDriver(
+        {
+            axis: AxisModel.for_axis(axis, ["quantization", *effects], params or {}),
+            other: AxisModel.for_axis(other, ["quantization"]),
+        }
+    )
+
+
+@pytest.mark.parametrize("axis", ["pan", "tilt"])
+def test_recovers_the_seed_friction_of_each_axis(axis: str) -> None:
+    res = run_friction_id(_rig(axis), axis)
+    true = AxisModel.for_axis(axis).params
+    for line in (res.positive, res.negative):
+        assert line.viscous_nm_s_per_rad == pytest.approx(true["viscous.b"], rel=0.03)
+        assert line.coulomb_nm == pytest.approx(true["coulomb.torque"], rel=0.01)
+    assert not res.shows_stiction()
+
+
+def test_recovers_direction_dependent_friction() -> None:
+    # The seed's measured pan values (App. A): Coulomb 0.0417 / 0.0466 N·m, viscous 1.1e-3 / 1.3e-3.
+    params = {
+        "coulomb.torque": 0.0417,
+        "coulomb_asymmetry.negative": 0.0466,
+        "viscous.b": 1.1e-3,
+        "viscous_asymmetry.negative": 1.3e-3,
+    }
+    res = run_friction_id(_rig("pan", ("coulomb_asymmetry", "viscous_asymmetry"), params), "pan")
+    for name, value in res.params.items():
+        assert value == pytest.approx(params[name], rel=0.03), name
+
+
+def test_break_away_above_coulomb_reveals_stiction_but_a_delay_does_not() -> None:
+    res = run_friction_id(_rig("pan", ("stiction",), {"stiction.static_torque": 0.08}), "pan")
+    assert res.shows_stiction()
+    assert res.breakaway_positive_nm == pytest.approx(0.08, rel=0.05)
+    assert res.positive.coulomb_nm == pytest.approx(0.052, rel=0.02)
+    delayed = run_friction_id(_rig("pan", ("delay",), {"delay.seconds": 0.015}), "pan")
+    assert not delayed.shows_stiction()
+    assert delayed.positive.coulomb_nm == pytest.approx(0.052, rel=0.02)
+
+
+def test_progress_rises_to_one_and_cancel_stops_the_job() -> None:
+    seen: list[float] = []
+    run_friction_id(_rig("tilt"), "tilt", voltages_per_direction=4, progress=seen.append)
+    assert seen == sorted(seen) and seen[-1] == pytest.approx(1.0)
+    driver = _rig("tilt")
+    calls = iter(range(10**6))
+    with pytest.raises(JobCancelled):
+        run_friction_id(driver, "tilt", cancel=lambda: next(calls) > 20)
+    assert not driver.enabled
+
+
+def test_cli_json_has_per_direction_friction_and_plot_data(capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(
+        [
+            "friction-id",
+            "--axis",
+            "pan",
+            "--json",
+            "--voltages",
+            "5",
+            "--effects",
+            "coulomb_asymmetry",
+            "--set",
+            "coulomb_asymmetry.negative=0.07",
+        ]
+    )
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["negative"]["coulomb_nm"] == pytest.approx(0.07, rel=0.02)
+    assert out["positive"]["coulomb_nm"] == pytest.approx(0.052, rel=0.02)
+    assert len(out["plot"]["velocity_rad_s"]) == len(out["plot"]["torque_nm"]) >= 6
+
+
+def test_cli_rejects_an_unknown_hidden_effect(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["friction-id", "--axis", "pan", "--effects", "warp_drive"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and "warp_drive" in err and "\n" == err[-1] and err.count("\n") == 1
+
+
+def test_an_unbalanced_axis_gets_an_error_that_names_the_likely_cause() -> None:
+    """Regression (practice rig hiding gravity): the job failed with only 'widen the voltage range'."""
+    rig = _rig("pan", ("gravity",), {"gravity.torque": 0.05, "gravity.phase": 1.0})
+    with pytest.raises(DataError, match="position-dependent torque"):
+        run_friction_id(rig, "pan")

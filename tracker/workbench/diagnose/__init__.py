@@ -1,0 +1,1 @@
+"""Diagnose the missing effect: screen the catalogue, judge candidates by simulation, explain."""

@@ -1,0 +1,172 @@
+"""Break-away analysis: the command at which a stuck axis starts to move, against the model.
+
+At rest the axis holds until the applied torque exceeds the break-away torque (Karnopp). A
+model with Coulomb torque Fc predicts motion as soon as ``s·(K·u − τ_other) > Fc_s``. Two
+effects raise the observed break-away command: static friction above Coulomb (stiction: a
+constant excess) and a transport delay (the command has risen further by the time the late
+torque arrives: an excess ``K·u̇·d`` that grows with the command's rate). Regressing the
+excess on [1, K·s·u̇] over all break-away events separates them — slow starts show stiction,
+fast ones delay — which one measurement of reversals alone cannot.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tracker.plant.effects import CATALOGUE, generic_effects
+from tracker.plant.model import AxisModel
+from tracker.workbench.measurements.data import Measurement
+
+FloatArray = NDArray[np.float64]
+MIN_REST_S = 0.05
+PRE_S = (0.008, 0.002)  # command averaged over this window before the first count change
+MIN_SHARE = 0.5  # the command before a start must reach this share of the Coulomb torque
+MAX_JUMP_V = 0.3  # ... and must not have jumped by more than this over the last ~30 ms
+
+
+@dataclass(frozen=True, slots=True)
+class BreakAway:
+    """Break-away events and the fit excess = a + d·(K·s·u̇).
+
+    ``excess_nm`` (shape (m,)) is the observed break-away torque minus the model's;
+    ``rate_nm_s`` the torque rate K·s·u̇ at each; ``static_excess_nm`` (a) and ``delay_s`` (d)
+    with standard errors.
+    """
+
+    count: int
+    excess_nm: FloatArray
+    rate_nm_s: FloatArray
+    static_excess_nm: float
+    static_excess_se: float
+    delay_s: float
+    delay_se: float
+
+    @property
+    def static_t(self) -> float:
+        return self.static_excess_nm / self.static_excess_se if self.static_excess_se > 0 else 0.0
+
+
+def _other_torque(model: AxisModel, theta: FloatArray) -> FloatArray:
+    """Direction-independent static torques (offset, gravity, ripple, generic effects) at θ."""
+    out = np.zeros_like(theta)
+    for e in ("offset", "gravity", "ripple", *generic_effects()):
+        if model.has(e):
+            out += CATALOGUE[e].torque_nm(model.params, theta, np.zeros_like(theta))
+    return out
+
+
+def _first_crossing(theta: FloatArray, start: float, direction: float, distance: float) -> float:
+    """Fractional sample where ``direction·(θ − start)`` first reaches ``distance``; inf if never."""
+    d = direction * (theta - start)
+    hit = np.flatnonzero(d >= distance)
+    if hit.size == 0:
+        return math.inf
+    i = int(hit[0])
+    if i == 0:
+        return 0.0
+    return float(i - 1 + (distance - d[i - 1]) / max(d[i] - d[i - 1], 1e-300))
+
+
+def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
+    """Find creeping starts from rest in ``meas`` and fit their excess over ``model``; None if < 4.
+
+    For each start the model is simulated from rest with the measured command, and the time its
+    angle first moves half an encoder count is set against the time the encoder first changed:
+    the time a real axis needs to cover that half count after breaking away is then in both
+    (without it, a slowly rising command looks like a delay and like stiction). The lag, times
+    the torque's rate, is the excess break-away torque of that start.
+    """
+    th, u, dt = meas.theta_rad, meas.u_v, meas.dt_s
+    change = np.flatnonzero(np.diff(th) != 0.0) + 1
+    if change.size < 2:
+        return None
+    gaps = np.diff(change)
+    min_rest = int(round(MIN_REST_S / dt))
+    rest_len = gaps[gaps >= min_rest]
+    ends = change[1:][gaps >= min_rest]  # first sample that moved after a long rest
+    pre0, pre1 = int(round(PRE_S[0] / dt)), max(1, int(round(PRE_S[1] / dt)))
+    slope_n = max(3, int(round(0.02 / dt)))
+    after = int(round(0.03 / dt))
+    k_gain = model.gain_nm_per_v
+    p = model.params
+    fc_pos = p["coulomb.torque"]
+    fc_neg = p.get("coulomb_asymmetry.negative", fc_pos) if model.has("coulomb_asymmetry") else fc_pos
+    if model.has("stiction"):
+        fc_pos = max(fc_pos, p["stiction.static_torque"])
+        fc_neg = max(fc_neg, p["stiction.static_torque"])
+    steps = np.abs(np.diff(th))
+    steps = steps[steps > 0]
+    count = float(np.min(steps)) if steps.size else 0.0
+    ex, rate = [], []
+    for e, gap in zip(ends, rest_len, strict=True):
+        if e - slope_n - pre0 < 0 or e + after >= th.size:
+            continue
+        s = math.copysign(1.0, th[e + after] - th[e - 1])
+        if th[e + after] == th[e - 1]:
+            continue
+        u_b = float(np.mean(u[e - pre0 : e - pre1]))
+        tt = np.arange(slope_n) * dt
+        du = float(np.polyfit(tt, u[e - pre1 - slope_n : e - pre1], 1)[0])
+        # Only starts where the command crept up to the threshold say what the threshold is
+        # (after a command step the axis starts at once, whatever its break-away torque).
+        early = float(np.mean(u[e - pre0 - slope_n : e - pre1 - slope_n]))
+        jump = abs(u_b - early)
+        if s * k_gain * u_b < MIN_SHARE * min(fc_pos, fc_neg) or jump > MAX_JUMP_V or s * du <= 0:
+            continue
+        lag = _model_lag_samples(meas, model, int(e), int(min(gap, e)), s, 0.5 * count)
+        if not math.isfinite(lag):
+            continue
+        ex.append(k_gain * s * du * lag * dt)
+        rate.append(k_gain * s * du)
+    if len(ex) < 4:
+        return None
+    y, r = np.array(ex), np.array(rate)
+    x = np.column_stack([np.ones_like(r), r])
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    res = y - x @ coef
+    sigma2 = float(res @ res) / max(1, y.size - 2)
+    try:
+        cov = np.linalg.inv(x.T @ x) * sigma2
+        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    except np.linalg.LinAlgError:
+        se = np.array([math.inf, math.inf])
+    return BreakAway(y.size, y, r, float(coef[0]), float(se[0]), float(coef[1]), float(se[1]))
+
+
+def _model_lag_samples(
+    meas: Measurement, model: AxisModel, first_moved: int, rest: int, direction: float, distance: float
+) -> float:
+    """Samples by which the encoder's first change after a rest lags the model's.
+
+    The model starts at rest ``rest`` samples before ``first_moved`` (at most 0.5 s) at the held
+    angle and is driven by the measured command; its first crossing of ``distance`` (half a count)
+    is compared with the encoder's (taken half a sample before ``first_moved``, the middle of the
+    sample period in which the count changed).
+    """
+    from tracker.plant.simulate import initial_state, simulate
+
+    lead = min(rest, int(round(0.5 / meas.dt_s)))
+    k0 = first_moved - lead
+    k1 = min(meas.n, first_moved + int(round(0.2 / meas.dt_s)))
+    rigid = model
+    for effect in ("backlash", "compliance"):
+        if rigid.has(effect):
+            rigid = rigid.without_effect(effect)
+    run = simulate(
+        rigid,
+        meas.u_v[k0:k1],
+        meas.dt_s,
+        x0=initial_state(float(meas.theta_rad[first_moved - 1])),
+        quantize=False,
+    )
+    sim_k = _first_crossing(run.theta_rad, float(meas.theta_rad[first_moved - 1]), direction, distance)
+    if not math.isfinite(sim_k):
+        return math.inf
+    return (lead - 0.5) - sim_k
+
+
+__all__ = ["BreakAway", "analyse_breakaway"]

@@ -1,0 +1,242 @@
+"""Which physical effect is the model missing? Rank every effect of the catalogue, give a verdict.
+
+Two stages (see docs/workbench.md, "Diagnosis"):
+
+1. Screening by inverse dynamics (:mod:`tracker.workbench.diagnose.screening`, ``effect_search``):
+   for each missing effect, the torque balance is refitted with its terms added (searching its
+   nonlinear parameter) and scored on held-out time blocks; an F-test on the effective sample
+   size of the time-correlated residual says whether the gain is beyond chance.
+2. Judgement by simulation (:mod:`tracker.workbench.diagnose.kstep`): each candidate model, with the
+   screening's parameters, predicts k steps ahead from the measured states; a paired test over
+   blocks of windows against the current structure (refitted) says whether it predicts better.
+   The verdict candidate is then refitted on the k-step error for its final parameters.
+
+An effect is *significant* only when both stages agree and the gains are of a size that
+matters (not merely detectable). A model that is already right gets no verdict.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from tracker.errors import JobCancelled
+from tracker.plant.effects import OPTIONAL_EFFECTS
+from tracker.plant.model import AxisModel
+from tracker.workbench.diagnose.breakaway import analyse_breakaway
+from tracker.workbench.diagnose.effect_search import screen_missing_effects
+from tracker.workbench.diagnose.evidence import EvidenceContext, describe, experiment_for, notes_for
+from tracker.workbench.diagnose.judgement import (
+    TORQUE_EFFECTS,
+    Judged,
+    finding,
+    judge_candidate,
+    rank,
+    reconsider_backlash,
+    refine_leaders,
+    with_values,
+)
+from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
+from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
+from tracker.workbench.measurements.data import Measurement
+from tracker.workbench.measurements.idim import prepare_signals
+
+FAR_OFF_RATIO = 2.0  # the current parameters are "far off" when a base refit halves the error
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """One effect the model might be missing.
+
+    ``fit_percent`` is the k-step fit the model reaches with it added and refitted; ``params``
+    its parameters (``"<effect>.<param>"``, SI) and ``stderr`` their standard errors;
+    ``confused_with`` effects that explain the same residual; ``experiment`` what to run to
+    confirm it or tell it from those.
+    """
+
+    effect: str
+    fit_percent: float
+    params: Mapping[str, float]
+    stderr: Mapping[str, float]
+    significant: bool
+    evidence: str
+    confused_with: tuple[str, ...] = ()
+    experiment: str | None = None
+    screen_gain: float = 0.0
+    kstep_gain: float = 0.0
+    finding: str | None = None  # "computational latency", "significant but small", or None
+    model: AxisModel | None = field(default=None, repr=False, compare=False)  # the model with it added
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "effect": self.effect,
+            "fit_percent": self.fit_percent,
+            "params": dict(self.params),
+            "stderr": dict(self.stderr),
+            "significant": self.significant,
+            "evidence": self.evidence,
+            "confused_with": list(self.confused_with),
+            "experiment": self.experiment,
+            "screen_gain": self.screen_gain,
+            "kstep_gain": self.kstep_gain,
+            "finding": self.finding,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class Diagnosis:
+    """The current model's fit, the verdict (or None) and every candidate, best first."""
+
+    fit_percent: float
+    verdict: str | None
+    candidates: tuple[Candidate, ...]
+    notes: tuple[str, ...] = ()
+    elapsed_s: float = 0.0
+    baseline_params: Mapping[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, object]:
+        """The CLI contract: fit_percent, verdict, candidates (best first), plus notes."""
+        return {
+            "fit_percent": self.fit_percent,
+            "verdict": self.verdict,
+            "candidates": [c.to_dict() for c in self.candidates],
+            "notes": list(self.notes),
+            "elapsed_s": self.elapsed_s,
+        }
+
+    def candidate(self, effect: str) -> Candidate:
+        """The candidate for ``effect`` (KeyError if the model already has it)."""
+        for c in self.candidates:
+            if c.effect == effect:
+                return c
+        raise KeyError(effect)
+
+
+def diagnose(
+    meas: Measurement,
+    model: AxisModel,
+    horizon_s: float | None = None,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Diagnosis:
+    """Rank the effects ``model`` lacks by how much of ``meas`` they explain; give a verdict.
+
+    Parameters
+    ----------
+    meas : measured log (t s, u V, θ rad).
+    model : the current model (base plus the effects it already has).
+    horizon_s : k-step prediction horizon (default 0.03 s, as ``compare``).
+    progress : called with the fraction done (0..1).
+    cancel : polled; returning True raises :class:`JobCancelled`.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    t0 = time.perf_counter()
+
+    def step(frac: float) -> None:
+        if cancel is not None and cancel():
+            raise JobCancelled("diagnosis cancelled")
+        if progress is not None:
+            progress(frac)
+
+    step(0.0)
+    sig = prepare_signals(meas)
+    design = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"])
+    base = Structure.of(model)
+    base_reg = design.fit(base)
+    base_values, _ = model_params(model, base, base_reg)
+    step(0.1)
+    screens = screen_missing_effects(design, model, base, base_reg, cancel)
+    step(0.5)
+
+    judge = KStepJudge(meas, sig, horizon_s)
+    current = judge.score(model)
+    refit = with_values(model, base_values)
+    refit_score = judge.score(refit)
+    base_model, base_score = (refit, refit_score) if refit_score.sse < current.sse else (model, current)
+    at_rest = sig.stuck[judge.starts]
+    rest_err = float(base_score.window_sse[at_rest].sum() / max(base_score.sse, 1e-300))
+    ctx = EvidenceContext(
+        sig, design, base_reg, analyse_breakaway(meas, base_model), model, (rest_err, float(at_rest.mean()))
+    )
+    two_mass = model.has("backlash") or model.has("compliance")
+    rows = [
+        judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel)
+        for scr in screens.values()
+    ]
+    step(0.7)
+    reconsider_backlash(rows, screens, ctx)
+    rank(rows)
+    refine_leaders(rows, judge, base_score, ctx, step, cancel)
+    rank(rows)
+
+    significant = [r.effect for r in rows if r.significant]
+    candidates = [_candidate(r, ctx, significant) for r in rows]
+    if "quantization" in OPTIONAL_EFFECTS and not model.has("quantization"):
+        candidates.append(_quantization_candidate(ctx, current.fit_percent, base_score))
+    verdict = candidates[0].effect if candidates and candidates[0].significant else None
+    notes = notes_for(candidates, ctx, verdict)
+    if base_model is not model and current.sse > FAR_OFF_RATIO * refit_score.sse:
+        notes = (
+            "the current model's parameters are far from this data: with its base parameters refitted by "
+            f"inverse dynamics the fit is {refit_score.fit_percent:.3f} % "
+            f"instead of {current.fit_percent:.3f} %; "
+            "candidates are judged against that refit (run `tracker model fit`)",
+        ) + notes
+    latency = next((c for c in candidates if c.finding == "computational latency"), None)
+    if latency is not None and latency.model is not None:
+        # A one-sample latency is part of the loop, not a missing effect of the axis; judge the
+        # rest against a model that has it, or every other candidate competes to explain it.
+        inner = diagnose(meas, latency.model, horizon_s, lambda f: step(0.8 + 0.2 * f), cancel)
+        found = [c for c in inner.candidates if c.significant]
+        others = [c for c in inner.candidates if not c.significant]
+        candidates = [*found, latency, *others]
+        verdict = inner.verdict
+        notes = tuple(n for n in notes if "computational latency" in n) + inner.notes
+        base_model = latency.model
+    step(1.0)
+    elapsed = time.perf_counter() - t0
+    return Diagnosis(current.fit_percent, verdict, tuple(candidates), notes, elapsed, dict(base_model.params))
+
+
+def _candidate(r: Judged, ctx: EvidenceContext, significant: list[str]) -> Candidate:
+    """The public card of a judged candidate."""
+    params = {k: v for k, v in r.model.params.items() if k.split(".")[0] == r.effect}
+    # Standard errors from the stage that produced the values: the torque regression for
+    # torque effects, the k-step refit for the others (none when neither estimated them).
+    source = r.stderr or (dict(r.screen.stderr) if r.effect in TORQUE_EFFECTS else {})
+    return Candidate(
+        effect=r.effect,
+        fit_percent=r.score.fit_percent,
+        params=params,
+        stderr={k: v for k, v in source.items() if k.split(".")[0] == r.effect},
+        significant=r.significant,
+        evidence=describe(r.effect, r.screen, r.cmp, ctx, r.model.params),
+        confused_with=ctx.confusions(r.effect, significant),
+        experiment=experiment_for(r.effect),
+        screen_gain=r.screen.gain_cv,
+        kstep_gain=r.cmp.improvement,
+        finding=finding(r, ctx),
+        model=r.model,
+    )
+
+
+def _quantization_candidate(ctx: EvidenceContext, fit: float, base_score: KStepScore) -> Candidate:
+    q = ctx.sig.encoder_step_rad
+    rms = float((base_score.end_error**2).mean() ** 0.5)
+    floor = q / 12**0.5
+    if q > 0:
+        ev = (
+            f"encoder step {q:.3g} rad in the data; k-step error RMS {rms:.3g} rad is "
+            f"{rms / floor:.1f}× the quantization floor step/√12 = {floor:.3g} rad "
+            "(a sensor effect: it changes no prediction, so adding it cannot improve the fit)"
+        )
+    else:
+        ev = "no encoder step found in the data (unquantized or noisy sensor)"
+    return Candidate("quantization", fit, {"quantization.step": q} if q > 0 else {}, {}, False, ev, (), None)
+
+
+__all__ = ["Candidate", "Diagnosis", "diagnose", "with_values"]

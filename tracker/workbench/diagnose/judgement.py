@@ -1,0 +1,439 @@
+"""Judging one candidate effect: does the simulation agree with the screening, and is it physical?
+
+The thresholds and rules of significance live here (see docs/workbench.md, "Diagnosis"); the
+orchestration is :func:`tracker.workbench.diagnose.diagnose.diagnose`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from tracker.plant.effects import EffectNames, generic_effects, get_param
+from tracker.plant.model import AxisModel
+from tracker.workbench.diagnose.evidence import EvidenceContext
+from tracker.workbench.diagnose.kstep import (
+    Comparison,
+    HeldOutSearch,
+    KStepJudge,
+    KStepScore,
+    held_out_search,
+    refine,
+)
+from tracker.workbench.diagnose.screening import Screen
+from tracker.workbench.fit import generic
+
+# A candidate must explain this share of the held-out residual torque (screening) ...
+MIN_SCREEN_GAIN = 0.08
+MAX_SCREEN_P = 1e-3
+MAX_SCREEN_P_JUDGED = 0.05
+# ... and cut the k-step prediction error by this share, consistently over blocks of windows.
+MIN_KSTEP_GAIN = 0.05
+MIN_KSTEP_ROBUST = 0.025
+# Stiction is judged on its break-away excess when the moving data cannot see it.
+MIN_BREAKAWAY_T = 4.0
+REFINE_TOP = 2
+MIN_BACKLASH_GAIN = 0.15
+MIN_BACKLASH_SIGNIFICANT_COUNTS = 8
+MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but not explode
+MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no delay at all)
+MIN_DRIVE_DELAY_SAMPLES = 1.5  # below: one controller tick of computational latency
+MAX_RESONANT_DAMPING = 1.0 / 2.0**0.5  # |H| of a second-order system peaks only below this
+MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
+OVERWHELMING_P = 1e-10
+MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
+BELT_FREQUENCIES_HZ = (3.0, 4.5, 6.5, 9.0, 12.0, 16.0, 22.0, 30.0, 42.0, 60.0)
+BELT_DAMPINGS = (0.05, 0.15, 0.4)
+EFFECT_PARAMS = {"gravity": 2, "ripple": 3, "stiction": 2, "compliance": 2}
+MIN_HELD_OUT_GAIN = 0.05
+STICTION_RATIOS = (1.1, 1.25, 1.4, 1.6, 1.8, 2.0, 2.4)  # break-away / Coulomb tried by simulation
+STRIBECK_VELOCITIES = (0.02, 0.05, 0.1)  # rad/s
+DELAY_SAMPLES = (0.5, 1, 1.5, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64, 90)  # delays tried by simulation
+BUILTIN_TORQUE_EFFECTS = ("offset", "coulomb_asymmetry", "viscous_asymmetry", "gravity", "ripple")
+# Judged by the torque regression: the built-in ones and every generic effect (live view).
+TORQUE_EFFECTS = EffectNames(lambda: (*BUILTIN_TORQUE_EFFECTS, *generic_effects()))
+# Torque-type effects keep their inverse-dynamics parameters (a direct regression on the torque
+# is more accurate than a k-step refit); these act through the simulation and are refitted.
+REFINED_BY_SIMULATION = ("stiction", "delay", "saturation", "compliance")
+HIDDEN_STATE_EFFECTS = ("compliance",)
+
+
+@dataclass(slots=True)
+class Judged:
+    """One candidate under judgement (mutable: refits replace its model, score and comparison)."""
+
+    effect: str
+    screen: Screen
+    model: AxisModel
+    score: KStepScore
+    cmp: Comparison
+    significant: bool
+    screen_ok: bool
+    stderr: dict[str, float] = field(default_factory=dict)
+    passed: bool = False  # passed the gates of size and agreement (before the physics check)
+
+    def rank_key(self) -> tuple[bool, float]:
+        """Significant first, then by the mean of held-out screening gain and k-step gain."""
+        return (not self.significant, -0.5 * (self.screen.gain_cv + self.cmp.improvement))
+
+    @property
+    def n_params(self) -> int:
+        return EFFECT_PARAMS.get(self.effect) or generic.param_count(self.effect)
+
+
+def with_values(model: AxisModel, values: Mapping[str, float], add: str | None = None) -> AxisModel:
+    """``model`` (plus effect ``add``) with ``values`` set, keeping every other value.
+
+    (``AxisModel.with_effect`` would reset an existing asymmetry to symmetric.)
+    """
+    effects = (*model.effects, add) if add and not model.has(add) else model.effects
+    keep = {k: v for k, v in model.params.items()}
+    keep.update(
+        {k: v for k, v in values.items() if k.split(".")[0] in (*effects, "inertia", "viscous", "coulomb")}
+    )
+    return AxisModel.create(model.gain_nm_per_v, {}, effects, keep)
+
+
+def _effect_only(scr: Screen) -> Screen:
+    """``scr`` with only the new effect's own parameters (the base model keeps its values)."""
+    own = {k: v for k, v in scr.params.items() if k.split(".")[0] == scr.effect}
+    return Screen(
+        scr.effect,
+        scr.structure,
+        scr.regression,
+        own,
+        scr.stderr,
+        scr.gain_cv,
+        scr.p_value,
+        scr.folds_improve,
+        scr.detail,
+    )
+
+
+def _centred(scr: Screen, base: AxisModel) -> Screen:
+    """For an asymmetry: split the regression's difference between the directions evenly around
+    the base model's value (which averaged the two directions before the asymmetry was known)."""
+    pairs = {
+        "coulomb_asymmetry": ("coulomb.torque", "negative"),
+        "viscous_asymmetry": ("viscous.b", "negative"),
+    }
+    if scr.effect not in pairs:
+        return _effect_only(scr)
+    pos_key, neg = pairs[scr.effect]
+    neg_key = f"{scr.effect}.{neg}"
+    delta = scr.params[neg_key] - scr.params.get(pos_key, base.params[pos_key])
+    mid = base.params[pos_key]
+    values = {pos_key: max(mid - 0.5 * delta, 0.0), neg_key: max(mid + 0.5 * delta, 0.0)}
+    return Screen(
+        scr.effect,
+        scr.structure,
+        scr.regression,
+        values,
+        scr.stderr,
+        scr.gain_cv,
+        scr.p_value,
+        scr.folds_improve,
+        scr.detail,
+    )
+
+
+def _candidate_model(model: AxisModel, scr: Screen, ctx: EvidenceContext) -> AxisModel:
+    values = dict(scr.params)
+    if scr.effect == "stiction" and ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T:
+        fc = values.get("coulomb.torque", model.params["coulomb.torque"])
+        values["stiction.static_torque"] = max(
+            values["stiction.static_torque"], fc + ctx.breakaway.static_excess_nm
+        )
+    return with_values(model, values, add=scr.effect)
+
+
+def judge_candidate(
+    scr: Screen,
+    screens: Mapping[str, Screen],
+    judge: KStepJudge,
+    base_model: AxisModel,
+    base_score: KStepScore,
+    ctx: EvidenceContext,
+    two_mass: bool,
+    cancel: Callable[[], bool] | None,
+) -> Judged:
+    """Build the candidate model of ``scr``'s effect and decide whether it is significant."""
+    effect = scr.effect
+    cand = _candidate_model(base_model, scr, ctx)
+    score = judge.score(cand)
+    # Another missing effect can bias the regression's J, b, Fc (a delay shrinks the apparent
+    # inertia): also try the effect alone on the base model's values, keep the better.
+    variants = [_effect_only(scr)]
+    if scr.effect in ("coulomb_asymmetry", "viscous_asymmetry"):
+        variants.append(_centred(scr, base_model))
+    for variant in variants:
+        other = _candidate_model(base_model, variant, ctx)
+        other_score = judge.score(other)
+        if other_score.sse < score.sse:
+            cand, score = other, other_score
+    cmp = judge.compare(base_score, score)
+    # Torque effects must pass a strict F-test; the others must also win the k-step judgement
+    # by a margin, so a looser one suffices (another missing effect left in the residual
+    # shrinks its effective sample size).
+    max_p = MAX_SCREEN_P if effect in TORQUE_EFFECTS else MAX_SCREEN_P_JUDGED
+    screen_ok = scr.gain_cv >= MIN_SCREEN_GAIN and scr.p_value <= max_p and scr.folds_improve
+    if effect == "stiction":
+        # Moving data barely sees static friction (the axis leaves the Stribeck zone in a few
+        # ms): search the break-away torque by simulation, chosen and judged on halves.
+        search = _stiction_search(judge, base_model, base_score, cand)
+        if search.held_out_gain > cmp.improvement:
+            cand, score = search.best, judge.score(search.best)
+            cmp = judge.compare(base_score, score)
+        by_breakaway = ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T
+        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway
+    if effect == "delay":
+        # In closed loop the command answers the disturbance a little later, which biases the
+        # regression's alignment of the whole input: judge the delay by simulation as well, on
+        # a grid of whole and half samples, chosen and judged on halves of the run.
+        search = _delay_search(judge, base_model, base_score, cand)
+        if search.held_out_gain > cmp.improvement:
+            cand, score = search.best, judge.score(search.best)
+            cmp = judge.compare(base_score, score)
+        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN
+    if effect == "compliance":
+        # A soft belt (load resonance inside the control loop's band) defeats the torque
+        # regression, and the regression's damping is rough: search the belt by simulation
+        # too (around the screening's frequency as well), chosen and judged on halves.
+        f_screen = float(cand.params["compliance.frequency"])
+        freqs = sorted({*BELT_FREQUENCIES_HZ, *(f_screen * r for r in (0.8, 0.9, 1.0, 1.1, 1.25))})
+        search = held_out_search(
+            judge,
+            base_score,
+            [
+                with_values(
+                    base_model, {"compliance.frequency": f, "compliance.damping": z}, add="compliance"
+                )
+                for f in freqs
+                if f < get_param("compliance.frequency").upper
+                for z in BELT_DAMPINGS
+            ],
+        )
+        if search.held_out_gain > cmp.improvement or not _physical(effect, cand, ctx):
+            cand, score = search.best, judge.score(search.best)
+            cmp = judge.compare(base_score, score)
+        screen_ok = (screen_ok and _physical(effect, cand, ctx)) or min(search.gains) >= MIN_HELD_OUT_GAIN
+    significant = screen_ok and _kstep_ok(effect, cmp, scr.p_value)
+    if effect == "backlash":
+        significant = _backlash_significant(scr, screens, cmp, ctx.sig.encoder_step_rad)
+    elif not screen_ok and two_mass and effect in TORQUE_EFFECTS and cmp.improvement > 0:
+        # With a belt or dead band in the model the torque regression is swamped by the rough
+        # load reconstruction: refit the effect with the friction by simulation and judge it
+        # on held-out halves of the k-step error.
+        names = [k for k in cand.params if k.split(".")[0] in (effect, "viscous", "coulomb")]
+        cand, _ = refine(judge, cand, names, max_evals=20, cancel=cancel)
+        score = judge.score(cand)
+        cmp = judge.compare(base_score, score)
+        significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_TWO_MASS and _kstep_ok(
+            effect, cmp
+        )
+    passed = significant
+    significant = significant and _physical(effect, cand, ctx)
+    return Judged(effect, scr, cand, score, cmp, significant, screen_ok, passed=passed)
+
+
+def refine_leaders(
+    rows: list[Judged],
+    judge: KStepJudge,
+    base_score: KStepScore,
+    ctx: EvidenceContext,
+    step: Callable[[float], None],
+    cancel: Callable[[], bool] | None,
+) -> None:
+    """Refit by simulation the leading candidates the screening supports (in place).
+
+    Gives the verdict its final parameters and standard errors, and a second chance to effects
+    acting through the simulation whose screening values (inertia split, damping) are rough.
+    """
+    # A hidden-state effect supported by the screening may predict worse before its refit (the
+    # inertia split and the rigid body's values come from a rough regression), so it is refined
+    # whatever its first k-step score; the others only when they already predict better.
+    hopeful = [
+        r
+        for r in rows
+        if r.screen_ok
+        and r.effect in REFINED_BY_SIMULATION
+        and (r.cmp.improvement > 0 or r.effect in HIDDEN_STATE_EFFECTS)
+    ]
+    for i, r in enumerate(hopeful[:REFINE_TOP]):
+        step(0.7 + 0.1 * i)
+        refined, se = refine(judge, r.model, cancel=cancel)
+        score = judge.score(refined)
+        if score.sse < r.score.sse:
+            r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
+            r.passed = _kstep_ok(r.effect, r.cmp)
+            r.significant = r.passed and _physical(r.effect, refined, ctx)
+
+
+def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:
+    """A belt that the simulation rejects does not out-explain a dead band (in place)."""
+    by = {r.effect: r for r in rows}
+    bl, belt = by.get("backlash"), by.get("compliance")
+    if bl is None or bl.significant or belt is None or belt.significant:
+        return
+    others = {k: v for k, v in screens.items() if k != "compliance"}
+    bl.significant = _backlash_significant(bl.screen, others, bl.cmp, ctx.sig.encoder_step_rad) and _physical(
+        "backlash", bl.model, ctx
+    )
+
+
+def rank(rows: list[Judged]) -> None:
+    """Best first (in place); a bias torque ahead of its equivalent direction-dependent friction.
+
+    Parsimony: a significant leader with more parameters than a significant look-alike (gravity
+    over a small range imitates a bias torque) leads only if it explains significantly more of
+    the torque (F-test on the effective sample size) and also predicts better by simulation;
+    otherwise the simpler story leads.
+    """
+    rows.sort(key=Judged.rank_key)
+    for j in range(1, len(rows)):
+        top, other = rows[0], rows[j]
+        if not other.significant:
+            break
+        if other.n_params < top.n_params and not _explains_more(top, other):
+            rows[0], rows[j] = other, top
+    names = [r.effect for r in rows]
+    if "offset" in names and "coulomb_asymmetry" in names:
+        i, j = names.index("coulomb_asymmetry"), names.index("offset")
+        if i < j and rows[i].significant == rows[j].significant:
+            gi, gj = rows[i].cmp.improvement, rows[j].cmp.improvement
+            if gj >= gi - 0.02 * max(abs(gi), 1e-9) - 0.01:
+                rows[i], rows[j] = rows[j], rows[i]
+
+
+def _delay_search(
+    judge: KStepJudge, base: AxisModel, base_score: KStepScore, cand: AxisModel
+) -> HeldOutSearch:
+    dt = judge.dt
+    grid = {round(cand.params["delay.seconds"] / dt * 2) / 2, *DELAY_SAMPLES}
+    seconds = sorted(v * dt for v in grid if 0 < v * dt <= get_param("delay.seconds").upper)
+    return held_out_search(
+        judge, base_score, [with_values(base, {"delay.seconds": d}, add="delay") for d in seconds]
+    )
+
+
+def _explains_more(rich: Judged, simple: Judged) -> bool:
+    """Whether ``rich`` (more parameters) explains significantly more than ``simple``: by an
+    F-test on the torque (effective sample size) and by simulation."""
+    r, q = rich.screen.regression, simple.screen.regression
+    extra = max(1, rich.n_params - simple.n_params)
+    dof = max(1.0, r.n_eff - len(r.names))
+    if r.sse <= 0.0 or q.sse <= r.sse:
+        return False
+    f = ((q.sse - r.sse) / extra) / (r.sse / dof)
+    better_torque = float(stats.f.sf(f, extra, dof)) < MAX_SCREEN_P
+    return better_torque and rich.score.sse < simple.score.sse
+
+
+def _stiction_search(
+    judge: KStepJudge, base: AxisModel, base_score: KStepScore, cand: AxisModel
+) -> HeldOutSearch:
+    fc = cand.params["coulomb.torque"]
+    grid = []
+    for ratio in STICTION_RATIOS:
+        for vs in STRIBECK_VELOCITIES:
+            grid.append(
+                with_values(
+                    base, {"stiction.static_torque": fc * ratio, "stiction.velocity": vs}, add="stiction"
+                )
+            )
+    return held_out_search(judge, base_score, grid)
+
+
+def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
+    """False for values that are no physical effect.
+
+    A delay under half a sample period is the sampling convention (when in the period the
+    encoder is read); a delay of about one sample is the controller's own computational latency
+    (the command logged at row i applied from row i + 1), a property of the log, not of the
+    drive — reported apart (:func:`finding`). A clip level the command never reaches clips
+    nothing (its gain came from refitting the rest). A "belt" with a damping ratio of 1/√2 or
+    more has no resonance peak, and one at or above a quarter of the sampling rate or the
+    catalogue's bound cannot be resolved: both are the model's extra load state fitting noise.
+    """
+    if effect == "delay":
+        return model.params["delay.seconds"] >= MIN_DRIVE_DELAY_SAMPLES * ctx.sig.dt_s
+    if effect == "saturation":
+        clipped = float(np.mean(np.abs(ctx.sig.u_v) > model.params["saturation.limit"]))
+        return clipped >= MIN_CLIPPED_SHARE
+    if effect == "compliance":
+        f_max = min(0.25 / ctx.sig.dt_s, 0.95 * get_param("compliance.frequency").upper)
+        return (
+            model.params["compliance.damping"] < MAX_RESONANT_DAMPING
+            and model.params["compliance.frequency"] < f_max
+        )
+    return True
+
+
+def finding(row: Judged, ctx: EvidenceContext) -> str | None:
+    """What a candidate that is not the verdict still tells: a one-sample computational latency,
+    or an effect that is detectable but too small to matter. None when nothing."""
+    if row.significant:
+        return None
+    if row.effect == "delay" and row.passed:
+        samples = row.model.params["delay.seconds"] / ctx.sig.dt_s
+        if MIN_DELAY_SAMPLES <= samples < MIN_DRIVE_DELAY_SAMPLES:
+            return "computational latency"
+    if row.passed and _physical(row.effect, row.model, ctx):
+        return None
+    scr = row.screen
+    detectable = scr.p_value <= MAX_SCREEN_P and scr.folds_improve and scr.gain_cv > 0.0
+    agrees = row.cmp.improvement > 0.0 and row.cmp.robust_improvement > 0.0
+    if detectable and agrees and _physical(row.effect, row.model, ctx):
+        return "significant but small"
+    return None
+
+
+def _kstep_ok(effect: str, cmp: Comparison, screen_p: float = 1.0) -> bool:
+    """The simulation agrees with the screening.
+
+    Torque effects are measured best by the torque regression (a small viscous asymmetry
+    barely moves a 30 ms prediction, and only in the few fast moves of one direction): the
+    simulation must agree in direction, also without its two best blocks unless the regression's
+    evidence is overwhelming. Effects that act through the command or a hidden state are where
+    inverse dynamics can be fooled (a clip level or a belt fitted to noise): they must win by a
+    margin.
+    """
+    if effect in TORQUE_EFFECTS:
+        return cmp.improvement > 0.0 and (cmp.robust_improvement > 0.0 or screen_p <= OVERWHELMING_P)
+    return cmp.improvement >= MIN_KSTEP_GAIN and cmp.robust_improvement >= MIN_KSTEP_ROBUST
+
+
+def _backlash_significant(
+    scr: Screen, screens: Mapping[str, Screen], cmp: Comparison, step_rad: float
+) -> bool:
+    """Backlash by screening alone, with a stricter bar.
+
+    Where the load sits in the dead band is not observable over a short prediction window (a
+    load without friction coasts in the gap), so the k-step judgement cannot confirm backlash
+    even for the true model. The screening reconstructs the load through the whole run instead;
+    it must explain a large share of the held-out torque, and more than a belt would; its width
+    must exceed a few encoder counts (below that it is quantization at reversals), and the
+    simulation must not be made much worse by it.
+    """
+    other = screens.get("compliance")
+    # Only a belt with a resonance competes (an overdamped one is the extra state fitting noise).
+    resonant = other is not None and other.params.get("compliance.damping", 0.0) < MAX_RESONANT_DAMPING
+    beats_belt = not resonant or other is None or scr.gain_cv > other.gain_cv
+    wide = scr.params.get("backlash.width", 0.0) >= MIN_BACKLASH_SIGNIFICANT_COUNTS * max(step_rad, 1e-12)
+    sane = cmp.improvement > MIN_BACKLASH_KSTEP
+    return scr.gain_cv >= MIN_BACKLASH_GAIN and scr.p_value <= MAX_SCREEN_P and beats_belt and wide and sane
+
+
+__all__ = [
+    "TORQUE_EFFECTS",
+    "Judged",
+    "finding",
+    "judge_candidate",
+    "rank",
+    "reconsider_backlash",
+    "refine_leaders",
+    "with_values",
+]

@@ -1,0 +1,326 @@
+"""Starting values for the fitter: searches for discrete and nonlinear parameters, then linear LS.
+
+Gradient methods need a start near the answer and cannot move a discrete parameter at all.
+Here each nonlinear parameter gets a search of its own, on the cheapest criterion that sees it:
+
+* ``ripple.cycles_per_rev``: the residual torque's spectrum over θ (a Fourier projection on
+  sin nθ, cos nθ for every whole n the data can resolve); the strongest line wins.
+* ``delay.seconds``, ``saturation.limit``, ``stiction.velocity``: a grid on the inverse-dynamics
+  error (each point a linear least squares over the linear parameters).
+* ``backlash.width``, ``compliance.frequency``: a grid on the k-step prediction error (they act
+  through a hidden state, so only a simulation sees them).
+
+Then the linear parameters come from inverse dynamics, and the start is whichever of that and
+the model's own values predicts better.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+from tracker.errors import ConfigError
+from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, get_param, is_generic
+from tracker.plant.model import AxisModel
+from tracker.plant.simulate import predict_windows
+from tracker.workbench.fit.torques import (
+    fit_inverse_dynamics,
+    linear_generic_params,
+    moving_mask,
+    replace_params,
+    residual_torque_nm,
+)
+from tracker.workbench.measurements.data import Measurement
+from tracker.workbench.measurements.idim import effective_samples
+from tracker.workbench.measurements.states import StateEstimate, encoder_step_rad, with_load_observer
+
+FloatArray = NDArray[np.float64]
+
+MAX_RIPPLE_SAMPLES = 8000
+DELAY_GRID_S = (0.0, 0.002, 0.005, 0.01, 0.015, 0.02, 0.03, 0.045, 0.065, 0.09, 0.12, 0.16)
+STRIBECK_GRID = (0.02, 0.05, 0.1, 0.2, 0.4)  # × the 95th-percentile speed
+SATURATION_GRID = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)  # × max |u|
+# Backlash widths: 1 to 300 encoder counts, ratio 1.25 (the cost has a basin about ±20 % wide).
+BACKLASH_GRID_COUNTS = tuple(float(x) for x in np.geomspace(1.0, 300.0, 26))
+# Belt resonance: ratio 1.1 (the k-step cost's basin is only about ±10 % wide), then FINE_GRID.
+COMPLIANCE_GRID_HZ = tuple(float(x) for x in np.geomspace(0.5, 300.0, 68))
+FINE_GRID = tuple(float(x) for x in np.linspace(0.88, 1.12, 13))
+COMPLIANCE_DAMPING_GRID = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8)
+# Low-pass of the rigid-body inverse dynamics for two-mass models (Hz).
+TWO_MASS_ID_CUTOFF_HZ = 2.0
+# Grids on the prediction error use every GRID_WINDOW_STRIDE-th window (4× cheaper).
+GRID_WINDOW_STRIDE = 4
+
+
+@dataclass(frozen=True, slots=True)
+class StartValues:
+    """The fitter's starting model and the inverse-dynamics relative error (%) behind it."""
+
+    model: AxisModel
+    id_error_percent: float
+
+
+def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int, stride: int = 1) -> float:
+    """Mean squared k-step window prediction error (rad²) of ``model`` (every ``stride``-th window)."""
+    starts = np.arange(0, meas.n - k - 1, k * stride, dtype=np.int64)
+    e = with_load_observer(est, model, meas)
+    pred = predict_windows(model, meas.u_v, meas.dt_s, starts, k + 1, e.initial_states(starts))[:, 1:]
+    y = meas.theta_rad[starts[:, None] + np.arange(1, k + 1)[None, :]]
+    return float(np.mean((y - pred) ** 2))
+
+
+def ripple_spectrum(
+    theta_rad: FloatArray, torque_nm: FloatArray, n_max: int = 500
+) -> tuple[NDArray[np.int64], FloatArray]:
+    """Amplitude (N·m) of the torque's sin/cos nθ component for each resolvable whole n.
+
+    Returns (cycles, amplitude), shape (m,) each. n must fit two periods in the θ range seen and
+    be resolved by the sample spacing in θ.
+    """
+    th = np.asarray(theta_rad, dtype=float)
+    tq = np.asarray(torque_nm, dtype=float) - float(np.mean(torque_nm))
+    span = float(th.max() - th.min())
+    if th.size < 50 or span <= 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    n_lo = max(1, int(math.ceil(4.0 * math.pi / span)))
+    step = float(np.percentile(np.abs(np.diff(th)), 95)) or span
+    n_hi = int(min(n_max, math.pi / (2.0 * step)))
+    if n_hi < n_lo:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    if th.size > MAX_RIPPLE_SAMPLES:
+        pick = np.linspace(0, th.size - 1, MAX_RIPPLE_SAMPLES).astype(np.int64)
+        th, tq = th[pick], tq[pick]
+    ns = np.arange(n_lo, n_hi + 1, dtype=np.int64)
+    amps = np.empty(ns.size)
+    for i, n in enumerate(ns):
+        a = np.column_stack([np.sin(n * th), np.cos(n * th)])
+        coef, *_ = np.linalg.lstsq(a, tq, rcond=None)
+        amps[i] = math.hypot(coef[0], coef[1])
+    return ns, amps
+
+
+def find_ripple_cycles(meas: Measurement, est: StateEstimate, model: AxisModel) -> float:
+    """Whole cycles per revolution of the strongest θ-periodic residual torque (the model's
+    value when the data cannot resolve any)."""
+    base = model.without_effect("ripple")
+    free = [
+        k
+        for k in base.free_param_names()
+        if k.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
+    ]
+    fitted = replace_params(base, fit_inverse_dynamics(meas, est, base, free).params)
+    mov = moving_mask(est.omega_rad_s)
+    tq = residual_torque_nm(meas, est, fitted)[mov]
+    th = est.theta_rad[mov]
+    ns, amps = ripple_spectrum(th, tq)
+    if ns.size == 0:
+        return float(model.params["ripple.cycles_per_rev"])
+    return _refine_cycles(th, tq, float(ns[int(np.argmax(amps))]))
+
+
+def _refine_cycles(theta_rad: FloatArray, torque_nm: FloatArray, n0: float) -> float:
+    """The real number of cycles per revolution near ``n0`` whose sin/cos fit explains most:
+    cogging seen through a gear (e.g. 2 × 17.01 per load revolution) is rarely whole."""
+    th, tq = theta_rad, torque_nm - float(np.mean(torque_nm))
+    if th.size > MAX_RIPPLE_SAMPLES:
+        pick = np.linspace(0, th.size - 1, MAX_RIPPLE_SAMPLES).astype(np.int64)
+        th, tq = th[pick], tq[pick]
+    grid = np.arange(max(1.0, n0 - 1.0), n0 + 1.0 + 1e-9, 0.02)
+
+    def sse(n: float) -> float:
+        a = np.column_stack([np.sin(n * th), np.cos(n * th), np.ones_like(th)])
+        coef, *_ = np.linalg.lstsq(a, tq, rcond=None)
+        r = tq - a @ coef
+        return float(r @ r)
+
+    sses = np.array([sse(float(n)) for n in grid])
+    best = float(grid[int(np.argmin(sses))])
+    whole = float(max(1, round(best)))
+    return whole if whole_is_enough(sse(whole), float(sses.min()), effective_samples(tq)) else best
+
+
+def whole_is_enough(sse_whole: float, sse_best: float, n_eff: float) -> bool:
+    """Whether a whole number of cycles per revolution explains the data as well as the best
+    real number, within chance (F-test at 1 % for the one extra degree of freedom on ``n_eff``
+    effectively independent samples): the simpler story — a ripple of the load itself — wins."""
+    if sse_best <= 0.0:
+        return sse_whole <= 0.0
+    f = (sse_whole - sse_best) / (sse_best / max(1.0, n_eff - 4.0))
+    return bool(f < stats.f.ppf(0.99, 1, max(1.0, n_eff - 4.0)))
+
+
+def _cutoff_hz(model: AxisModel) -> float | None:
+    """Rigid-body inverse dynamics of a two-mass axis: keep well below the belt resonance."""
+    if model.has("compliance") or model.has("backlash"):
+        return TWO_MASS_ID_CUTOFF_HZ
+    return None
+
+
+def _id_error(meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str]) -> float:
+    return fit_inverse_dynamics(meas, est, model, free, cutoff_hz=_cutoff_hz(model)).relative_error_percent
+
+
+def _grid_on_id(
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    name: str,
+    grid: Sequence[float],
+    free: Sequence[str],
+) -> AxisModel:
+    prm = get_param(name)
+    best, best_err = model, math.inf
+    for v in grid:
+        v = min(max(v, prm.lower), prm.upper)
+        cand = replace_params(model, {name: v})
+        err = _id_error(meas, est, cand, free)
+        if err < best_err:
+            best, best_err = cand, err
+    return best
+
+
+def grid_on_prediction(
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    name: str,
+    grid: Sequence[float],
+    k: int,
+    stride: int = GRID_WINDOW_STRIDE,
+) -> AxisModel:
+    """``model`` with ``name`` set to the grid value (or its own) of least k-step window cost."""
+    prm = get_param(name)
+    best, best_cost = model, window_cost(meas, est, model, k, stride)
+    for v in grid:
+        v = min(max(v, prm.lower), prm.upper)
+        cand = replace_params(model, {name: v})
+        cost = window_cost(meas, est, cand, k, stride)
+        if cost < best_cost:
+            best, best_cost = cand, cost
+    return best
+
+
+def search_start(
+    meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str], k: int
+) -> StartValues:
+    """Starting values for the fit of ``free`` (full names) at horizon ``k`` samples."""
+    m = model
+    if m.has("quantization"):
+        q = encoder_step_rad(meas.theta_rad)
+        if 0.0 < q <= get_param("quantization.step").upper:
+            m = replace_params(m, {"quantization.step": q})
+    linear_free = [
+        n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
+    ]
+    linear_free = [n for n in linear_free if n not in ("stiction.velocity", "gravity.phase", "ripple.phase")]
+    # Generic effects: only the parameters their torque is linear in (the rest: searched, below).
+    linear_free = [
+        n for n in linear_free if not is_generic(n.split(".")[0]) or n in linear_generic_params(m, free)
+    ]
+    if m.has("ripple") and "ripple.amplitude" in free:
+        m = replace_params(m, {"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
+    w95 = float(np.percentile(np.abs(est.omega_rad_s), 95)) or 1.0
+    umax = float(np.max(np.abs(meas.u_v)))
+    try:
+        if "delay.seconds" in free:
+            m = _grid_on_id(meas, est, m, "delay.seconds", DELAY_GRID_S, linear_free)
+        if "saturation.limit" in free and umax > 0:
+            m = _grid_on_id(
+                meas, est, m, "saturation.limit", [f * umax for f in SATURATION_GRID], linear_free
+            )
+        if "stiction.velocity" in free:
+            m = _grid_on_id(meas, est, m, "stiction.velocity", [f * w95 for f in STRIBECK_GRID], linear_free)
+        for name, grid in _generic_grids(m, free):
+            m = _grid_on_id(meas, est, m, name, grid, linear_free)
+        idf = fit_inverse_dynamics(meas, est, m, linear_free, cutoff_hz=_cutoff_hz(m))
+    except ConfigError:
+        idf = None
+    # Inverse dynamics fits gravity and ripple as (T cos φ, T sin φ): keep the phase it found with
+    # the amplitude (a torque at the wrong phase predicts worse than none at all).
+    from_id = (*linear_free, *(n for n in ("gravity.phase", "ripple.phase") if n in free))
+    m_id = replace_params(m, {k_: v for k_, v in idf.params.items() if k_ in from_id}) if idf else m
+    if "stiction.static_torque" in free and m_id.has("stiction"):
+        # Break-away torque must be at least Coulomb to mean anything (inverse dynamics hardly sees it).
+        fc = m_id.params["coulomb.torque"]
+        if m_id.params["stiction.static_torque"] < 1.05 * fc:
+            m_id = replace_params(m_id, {"stiction.static_torque": 1.3 * fc})
+    # Keep whichever start predicts better: the data's own (inverse dynamics) or the model's values.
+    own = replace_params(
+        m,
+        {
+            n: m_id.params[n]
+            for n in m_id.params
+            if n.split(".")[0] in ("delay", "saturation", "ripple", "quantization")
+            or n == "stiction.velocity"
+        },
+    )
+    # A third start: the model's base values with the data's values for the added effects.
+    # Inverse dynamics can find an effect well (gravity's torque and phase) while biasing a base
+    # parameter (b from a closed loop); dropping its effect values then would leave the fit at a
+    # degenerate zero (T = 0: no gradient in the phase) from which it never leaves.
+    hybrid = replace_params(
+        own, {n: v for n, v in m_id.params.items() if n.split(".")[0] not in BASE_EFFECTS}
+    )
+    m_id = min((m_id, own, hybrid), key=lambda cand: window_cost(meas, est, cand, k))
+    # Hidden-state effects are searched by prediction on the chosen start: inverse dynamics has no
+    # hidden state, and through a wide dead band it returns nonsense (J ten times too small), on
+    # which no width predicts better than none.
+    return StartValues(
+        _search_hidden_state(meas, est, m_id, free, k), idf.relative_error_percent if idf else math.nan
+    )
+
+
+def _generic_grids(model: AxisModel, free: Sequence[str]) -> list[tuple[str, list[float]]]:
+    """(parameter, grid) for every free parameter a generic effect of ``model`` declares a
+    search grid for (``Effect.search``), searched one after the other on inverse dynamics."""
+    out: list[tuple[str, list[float]]] = []
+    for e in model.effects:
+        if is_generic(e):
+            for short, grid in CATALOGUE[e].search.items():
+                if f"{e}.{short}" in free:
+                    out.append((f"{e}.{short}", [float(v) for v in grid]))
+    return out
+
+
+def _search_hidden_state(
+    meas: Measurement, est: StateEstimate, m_id: AxisModel, free: Sequence[str], k: int
+) -> AxisModel:
+    """Grid searches by k-step prediction for backlash width and belt frequency/damping."""
+    unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
+    if "backlash.width" in free:
+        # From one count up to a tenth of the travel: counts alone (or the noise level, on a log
+        # without quantization) can leave the grid far short of a real dead band.
+        top = max(unit * BACKLASH_GRID_COUNTS[-1], 0.1 * float(np.ptp(meas.theta_rad)))
+        top = min(top, get_param("backlash.width").upper)
+        grid = np.geomspace(unit, max(top, 2 * unit), len(BACKLASH_GRID_COUNTS))
+        m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [float(w) for w in grid], k)
+        # The cost moves in steps as contacts cross sample boundaries, so a gradient barely
+        # refines the width: finish the search on a fine grid instead.
+        w0 = m_id.params["backlash.width"]
+        m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [w0 * f for f in FINE_GRID], k)
+    if "compliance.frequency" in free:
+        nyq = 0.5 / meas.dt_s
+        m_id = grid_on_prediction(
+            meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k
+        )
+        f0 = m_id.params["compliance.frequency"]
+        m_id = grid_on_prediction(meas, est, m_id, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
+        if "compliance.damping" in free:
+            m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
+    return m_id
+
+
+__all__ = [
+    "FINE_GRID",
+    "StartValues",
+    "grid_on_prediction",
+    "find_ripple_cycles",
+    "ripple_spectrum",
+    "search_start",
+    "window_cost",
+]

@@ -1,0 +1,1 @@
+"""Measurements: the CSV log, the EMPS benchmark, state estimation and inverse dynamics."""
