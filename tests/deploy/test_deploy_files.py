@@ -134,3 +134,17 @@ def test_the_wheel_carries_every_static_and_example_file() -> None:
         if p.is_file() and "__pycache__" not in p.parts
     }
     assert wanted - shipped == set(), "not in the wheel: " + ", ".join(map(str, sorted(wanted - shipped)))
+
+
+def test_the_wheel_carries_every_data_file_of_the_packages() -> None:
+    """Files in tracker/ and app/ that are not Python reach the wheel only through package-data."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    package_data = config["tool"]["setuptools"].get("package-data", {})
+    for package in ("tracker", "app"):
+        listed = {p for pattern in package_data.get(package, []) for p in (ROOT / package).glob(pattern)}
+        data = {
+            p for p in (ROOT / package).rglob("*")
+            if p.is_file() and p.suffix not in {".py", ".pyc"} and "__pycache__" not in p.parts
+            and not p.name.endswith((".nbi", ".nbc"))
+        }
+        assert data <= listed, f"not in package-data of {package}: {sorted(map(str, data - listed))}"

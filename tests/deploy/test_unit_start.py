@@ -134,6 +134,10 @@ def test_the_service_starts_as_the_unit_starts_it(prefix: Path, tmp_path: Path) 
         # The compiled kernels went to the unit's NUMBA_CACHE_DIR inside the state folder.
         cache = Path(relocate(unit.environment["NUMBA_CACHE_DIR"], room.places))
         assert cache.is_relative_to(room.state)
+        # (kernels compile as the loop and the workers first run them, some seconds after /health)
+        cache_deadline = time.monotonic() + 90
+        while not list(cache.rglob("*.nbi")) and time.monotonic() < cache_deadline:
+            time.sleep(0.5)
         assert list(cache.rglob("*.nbi")), "no compiled kernel cached in " + str(cache)
     finally:
         proc.send_signal(signal.SIGTERM)  # what systemctl stop sends
