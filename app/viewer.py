@@ -31,6 +31,7 @@ TRAIL_POINTS = 40
 TRAIL_PERIOD_S = 0.1
 ARRAY_HEIGHT_M = 1.0
 RAY_LENGTH_M = 2.5
+LOOPBACK_HOSTS = {"127.0.0.1", "::1", "localhost"}
 # Rotates viser's camera-frustum frame (looks along +z, +y down) to look along +x with +z up.
 _R_HEAD_FRUSTUM = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
@@ -106,6 +107,9 @@ class RigViewer:
             self.server.initial_camera.look_at = (0.6, 0.0, 1.0)
         self.host = host
         self.port = self.server.get_port()
+        if host not in LOOPBACK_HOSTS:
+            log.warning("viser listens on %s:%d with no authentication; browsers get the view through "
+                        "the console (%s/): set viewer_host = \"127.0.0.1\"", host, self.port, VIEW_PATH)
         self.head_mounted = bool(head_mounted)
         self._build_scene(mics_m)
         self._task: asyncio.Task[None] | None = None

@@ -98,6 +98,8 @@ def test_banner_names_the_ports_actually_bound(tmp_path: Path) -> None:
         db.close()
     assert f"http://127.0.0.1:{port}/" in lines and port != 0
     assert "http://127.0.0.1:8082/" in lines and "8081" not in lines
+    # the address browsers use: through the console, on the console's bound port
+    assert f"3D view on http://127.0.0.1:{port}/api/v1/view/" in lines
 
 
 @pytest.mark.slow
