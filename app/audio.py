@@ -227,11 +227,18 @@ class AudioStream:
         self.note = "starting"
         self.worker: Any = None  # the subprocess building the meeting audio, while it runs
         self.locator: Any = None
+        self.live: Any = None  # the sound card's source while listening live
         self.closed = False
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._cpu_s = 0.0
         self._audio_s = 0.0
+
+    @property
+    def dropped_blocks(self) -> int:
+        """Live input blocks that came after lost input (0 for a file or the simulated room,
+        which wait for the localizer)."""
+        return int(getattr(self.live, "overflows", 0))
 
     @property
     def cpu_ms_per_s(self) -> float:
@@ -302,6 +309,7 @@ class AudioStream:
         With a head-mounted array every block carries the engine's measured pan and tilt at
         the moment it arrived (:meth:`_record_head`).
         """
+        self.live = live
         try:
             loc = self._new_locator(live.fs_hz, live.n_channels)
             arrivals: deque[float] = deque(maxlen=50)  # engine time minus stream time, 5 s

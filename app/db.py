@@ -12,7 +12,7 @@ import sqlite3
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -111,6 +111,20 @@ class Database:
                 self._conn.execute("ROLLBACK")
                 raise
             self._conn.execute("COMMIT")
+
+    def transaction(self) -> AbstractContextManager[sqlite3.Connection]:
+        """One write transaction for the modules that keep their own tables (app/persist.py,
+        app/audit.py): it commits whole when the block ends, rolls back if it raises."""
+        return self._tx()
+
+    def ensure_tables(self, schema: str) -> None:
+        """Run ``CREATE TABLE IF NOT EXISTS ...`` statements of a module that keeps its own tables."""
+        with self._lock:
+            self._conn.executescript(schema)
+
+    def rows(self, sql: str, args: tuple[Any, ...] = ()) -> list[sqlite3.Row]:
+        """The rows of a read-only query."""
+        return self._all(sql, args)
 
     def _all(self, sql: str, args: tuple[Any, ...] = ()) -> list[sqlite3.Row]:
         with self._lock:

@@ -25,6 +25,9 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from app.auth import KEY_HEADER, RequireRole, Role, lookup
 from app.errors import Forbidden, TooLarge, TooManyRequests, Unauthorized, error_response
 
+ROUTE_KEY = "tracker.route_template"  # set in the scope: the path template of the route found
+UNMATCHED = "<unmatched>"
+
 
 def client_address(scope: Scope) -> str:
     """The peer's address (the proxy's, behind a reverse proxy)."""
@@ -79,7 +82,9 @@ class RequestGuard:
         probe = {"type": "http", "method": scope["method"], "path": path[len(self.prefix):], "root_path": ""}
         for route, role, upload in self._routes:
             if route.matches(probe)[0] == Match.FULL:
+                scope[ROUTE_KEY] = self.prefix + route.path  # the metrics' label (app/metrics.py)
                 return role, upload
+        scope[ROUTE_KEY] = UNMATCHED  # no API route: no need to look again
         return None, False
 
     def _check_key(self, svc: Any, scope: Scope, role: Role) -> Exception | None:  # noqa: ANN401

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -29,8 +30,16 @@ JobFn = Callable[..., dict[str, Any]]
 class JobRunner:
     """Starts jobs in the worker pool and keeps their cancel slots."""
 
-    def __init__(self, db: Database, pool: WorkerPool, max_running: int = 2) -> None:
+    def __init__(
+        self,
+        db: Database,
+        pool: WorkerPool,
+        max_running: int = 2,
+        observe: Callable[[str, str, float], None] | None = None,
+    ) -> None:
+        """``observe(kind, outcome, duration_s)`` is told of every job that ends (the metrics)."""
         self.db = db
+        self.observe = observe
         self.pool = pool
         self.max_running = max_running
         self._slots: dict[int, int] = {}
@@ -47,7 +56,7 @@ class JobRunner:
                 retry_after_s=5.0,
             )
         job_id = self.db.add_job(kind, params)
-        self._tasks[job_id] = asyncio.create_task(self._run(job_id, fn, args), name=f"job-{job_id}")
+        self._tasks[job_id] = asyncio.create_task(self._run(job_id, kind, fn, args), name=f"job-{job_id}")
         return job_id
 
     def progress(self, job_id: int, fraction: float, message: str) -> None:
@@ -55,8 +64,9 @@ class JobRunner:
         if job_id in self._slots and job_id not in self._cancelled:
             self.db.update_job(job_id, progress=fraction, message=message)
 
-    async def _run(self, job_id: int, fn: JobFn, args: tuple[Any, ...]) -> None:
+    async def _run(self, job_id: int, kind: str, fn: JobFn, args: tuple[Any, ...]) -> None:
         self.db.update_job(job_id, state="running")
+        t0 = time.monotonic()
         try:
             slot, future = self.pool.submit_job(fn, job_id, *args)
             self._slots[job_id] = slot
@@ -78,6 +88,11 @@ class JobRunner:
             else:
                 self.db.update_job(job_id, state="done", progress=1.0, message="done", result=result)
         finally:
+            if self.observe is not None:
+                job = self.db.get_job(job_id)
+                state = str(job["state"]) if job else ""
+                outcome = state if state in {"done", "failed", "cancelled"} else "interrupted"
+                self.observe(kind, outcome, time.monotonic() - t0)
             self._slots.pop(job_id, None)
             self._cancelled.discard(job_id)
             self._tasks.pop(job_id, None)

@@ -19,7 +19,8 @@ from starlette.responses import Response
 from app import errors
 from app.auth import Role, lookup
 from app.guard import RequestGuard
-from app.routes import ALL_ROUTERS
+from app.metrics import MetricsMiddleware
+from app.routes import ALL_ROUTERS, ops
 from app.service import Service
 from app.settings import Settings, load_settings
 from app.view_proxy import VIEW_PATH
@@ -40,7 +41,8 @@ unknown axis or resource, 409 manual control held by someone else, 422 out of ra
 names the limit), unsafe gains (with the margins) or an invalid body (`errors` lists the first
 problems), 400 malformed data (the body names the line and column), 413 body, upload or
 measurement over its cap (the body names the setting), 429 too many bad keys from one address or
-too much heavy work at once (with `Retry-After`), 503 driver fault.
+too much heavy work at once (with `Retry-After`), 503 driver fault. Changes are written to an audit
+log (`GET /audit`, admins). Outside this API: `GET /metrics` (Prometheus) and `GET /health`.
 """
 
 
@@ -89,6 +91,9 @@ def create_app(settings: Settings | None = None, banner_port: int | None = None)
         if request.url.path.startswith("/api/"):
             response.headers.setdefault("Cache-Control", "no-store")
         return response
+
+    app.add_middleware(MetricsMiddleware)  # outermost: times everything, refusals included
+    app.include_router(ops.router)  # /metrics and /health, outside the API's prefix
 
     @app.get("/", include_in_schema=False)
     async def index() -> FileResponse:

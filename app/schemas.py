@@ -37,6 +37,9 @@ class LoopOut(BaseModel):
     restarts: int = Field(description="times the loop fell over 0.1 s behind and dropped ticks")
     in_thread: bool = Field(description="the loop runs in its own thread (real time)")
     priority: int = Field(0, description="the loop thread's SCHED_FIFO priority (0: normal scheduling)")
+    last_tick_ms_ago: float | None = Field(
+        None, description="since the latest tick started (null before the first); /health says 503 "
+                          "past health_stall_s")
 
 
 class StatusOut(BaseModel):
@@ -59,6 +62,9 @@ class StatusOut(BaseModel):
         description="what the engine steers: kind (sim | visca), url, and for a camera its profile, link "
                     "state (connecting | connected | reconnecting), command rate, round trips, retransmits")
     loop: LoopOut | None = Field(None, description="the control loop's timing")
+    settings_warnings: list[str] = Field(
+        default_factory=list, description="stored settings not restored at start-up, and why (the "
+                                          "defaults are in use; docs/operations.md)")
 
 
 class TrackingIn(Strict):

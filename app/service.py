@@ -1,5 +1,5 @@
 """The running service: settings, database, engine, telemetry hub, control lock, worker processes
-and jobs, 3D view.
+and jobs, 3D view, the stored console settings, the audit log and the metrics.
 
 One :class:`Service` lives in ``app.state.svc`` for the lifetime of the FastAPI app; the lifespan
 in :mod:`app.main` starts and stops it. Routes reach it through :func:`get_service`.
@@ -12,16 +12,21 @@ import contextlib
 import gc
 import logging
 import math
+import time
 from typing import Annotated, Any
 
 from fastapi import Depends, Request
 
 from app import heavy, rig
+from app.audit import AuditLog
 from app.auth import ensure_admin_key
 from app.backoff import BadKeyBackoff
+from app.console_state import ConsoleState
 from app.control_lock import ControlLock
 from app.db import Database
 from app.jobs import JobRunner
+from app.metrics import Metrics
+from app.persist import SettingsStore
 from app.settings import Settings
 from app.telemetry import TelemetryHub
 from app.view_proxy import ViewSessions
@@ -39,12 +44,18 @@ class Service:
         self.db = Database(settings.db_path)
         self.first_admin_key = ensure_admin_key(self.db, settings.admin_key_path)
         self.db.fail_unfinished_jobs()
+        self.store = SettingsStore(self.db)
+        self.console = ConsoleState(self.store)
+        self.audit = AuditLog(self.db, max_rows=settings.audit_max_rows)
+        self.metrics = Metrics()
         self.lock = ControlLock(ttl_s=settings.control_lock_ttl_s)
         self.hub = TelemetryHub(rate_hz=settings.telemetry_rate_hz)
         self.pool = WorkerPool(settings.job_workers, on_progress=self._job_progress, effects=settings.effects)
-        self.jobs = JobRunner(self.db, self.pool, max_running=settings.max_running_jobs)
+        self.jobs = JobRunner(self.db, self.pool, max_running=settings.max_running_jobs,
+                              observe=self.metrics.job_finished)
         self.work = WorkPool(
-            settings.heavy_workers, settings.heavy_queue, settings.heavy_per_key, settings.effects
+            settings.heavy_workers, settings.heavy_queue, settings.heavy_per_key, settings.effects,
+            observe=self.metrics.work_finished,
         )
         self.bad_keys = BadKeyBackoff(
             settings.bad_key_limit, settings.bad_key_window_s, settings.bad_key_max_block_s
@@ -55,6 +66,8 @@ class Service:
         self.view_sessions = ViewSessions()
         self.audio_note: str | None = None
         self._engine_task: asyncio.Task[None] | None = None
+        self.engine_started_s = math.nan  # time.perf_counter() when the engine's loop was started
+        self.metrics.watch(self)
 
     def _job_progress(self, job_id: int, fraction: float, message: str) -> None:
         self.jobs.progress(job_id, fraction, message)
@@ -63,6 +76,7 @@ class Service:
         """Build and start the engine, the telemetry hub, the audio target source and the 3D view."""
         s = self.settings
         self.engine = rig.build_engine(s)
+        self.console.restore(self.engine)  # before the first tick (app/console_state.py)
         self.work.warm(heavy.warm_up)
         # Everything loaded so far (numba, scipy, python-control: some 200 000 objects) out of
         # the collector's sight: a full collection over them held the GIL, and so the control
@@ -70,6 +84,7 @@ class Service:
         gc.collect()
         gc.freeze()
         self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
+        self.engine_started_s = time.perf_counter()
         self.hub.start(self.engine)
         if s.audio_enabled:
             self.audio, self.audio_note = rig.attach_audio(self.engine, s)

@@ -112,6 +112,14 @@ class Settings(BaseSettings):
     job_workers: int = Field(
         1, ge=1, le=8, description="worker processes for jobs (friction-ID), with progress and cancel; "
                                    "they never share the control loop's interpreter")
+    # Operations (docs/operations.md).
+    metrics_role: Literal["public", "viewer", "operator", "engineer", "admin"] = Field(
+        "viewer", description="the role a key needs to read /metrics (X-API-Key or Authorization: Bearer); "
+        "'public': no key (only behind a firewall: the figures tell when the room is in use)")
+    health_stall_s: float = Field(
+        2.0, gt=0.0, le=600.0, description="/health answers 503 when the control loop has not "
+        "ticked for longer than this")
+    audit_max_rows: int = Field(100_000, ge=100, description="the audit log keeps this many newest entries")
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @field_validator("audio_input")

@@ -72,6 +72,7 @@ class Subscription:
             with contextlib.suppress(asyncio.QueueEmpty):
                 self.queue.get_nowait()
                 self.dropped += 1
+                self._hub.frames_dropped += 1
         self.queue.put_nowait(frame)
 
     async def __aiter__(self) -> AsyncIterator[dict[str, Any]]:
@@ -90,6 +91,7 @@ class TelemetryHub:
         self.latest: Snapshot | None = None
         self.latest_frame: dict[str, Any] | None = None
         self.frames_sent = 0
+        self.frames_dropped = 0  # frames a slow client's full queue lost, all clients together
         self._subs: set[Subscription] = set()
         self._last_t_s = -math.inf
         self._task: asyncio.Task[None] | None = None

@@ -36,7 +36,17 @@ def load_site_effects(effects: str) -> None:
 class WorkPool:
     """Runs heavy functions in worker processes, a bounded number at a time."""
 
-    def __init__(self, workers: int = 1, queue: int = 4, per_key: int = 2, effects: str = "") -> None:
+    def __init__(
+        self,
+        workers: int = 1,
+        queue: int = 4,
+        per_key: int = 2,
+        effects: str = "",
+        observe: Callable[[str, str, float], None] | None = None,
+    ) -> None:
+        """``observe(kind, outcome, duration_s)`` is told of each request's end (the metrics):
+        kind is the function's name, outcome ok, error or lost (its worker died)."""
+        self.observe = observe
         self.workers, self.queue, self.per_key = workers, queue, per_key
         self.effects = effects  # the site's effect plug-ins: each spawned worker loads them too
         self._executor: ProcessPoolExecutor | None = None
@@ -69,8 +79,13 @@ class WorkPool:
         self._by_key[who.key_id] += 1
         t0 = time.monotonic()
 
-        def done(_: Future[T]) -> None:  # runs when the work ends, even if the request is gone
+        def done(future: Future[T]) -> None:  # runs when the work ends, even if the request is gone
             loop.call_soon_threadsafe(self._release, who.key_id, time.monotonic() - t0)
+            if self.observe is not None:
+                error = None if future.cancelled() else future.exception()
+                outcome = ("cancelled" if future.cancelled() else "ok" if error is None
+                           else "lost" if isinstance(error, BrokenProcessPool) else "error")
+                self.observe(getattr(fn, "__name__", "work"), outcome, time.monotonic() - t0)
 
         try:
             future = self._pool().submit(fn, *args)

@@ -9,7 +9,10 @@ clock by that much).
 
 Timing (:class:`LoopTiming`): a tick's *lateness* is how long after its due time it started;
 an *overrun* is a tick that started after the next one was due (late by a whole period or
-more). While the loop runs, the interpreter's switch interval is lowered to ``switch_interval_s``
+more); a tick's *gap* is the time since the previous tick started (one period when on time),
+counted in buckets of ``GAP_BUCKETS`` periods (a histogram the service exports), and
+``last_tick_age_s`` how long ago the latest tick started (a loop stuck in a tick shows it
+growing). While the loop runs, the interpreter's switch interval is lowered to ``switch_interval_s``
 (default 0.5 ms, Python's is 5 ms): a thread waiting for the GIL asks its holder to let go
 after that long, so a busy web thread delays a tick by about that much, not 5 ms.
 
@@ -21,6 +24,7 @@ systemd's ``CPUSchedulingPolicy``/``LimitRTPRIO`` or root; refused, the loop run
 
 from __future__ import annotations
 
+import bisect
 import math
 import os
 import sys
@@ -34,6 +38,8 @@ from tracker.errors import ConfigError
 SPIN_S = 5e-4
 SWITCH_INTERVAL_S = 5e-4
 MAX_BEHIND_S = 0.1
+# Upper bounds of the tick-gap histogram's buckets, in periods (the last bucket is +inf).
+GAP_BUCKETS = (0.5, 0.9, 1.1, 1.25, 1.5, 2.0, 3.0, 5.0, 10.0, 30.0, 100.0, 1000.0)
 
 
 def sleep_until(deadline_s: float, spin_s: float = SPIN_S) -> None:
@@ -64,6 +70,10 @@ class LoopTiming:
     running: bool
     in_thread: bool
     priority: int = 0  # the SCHED_FIFO priority the loop's thread got (0: the normal class)
+    last_tick_age_s: float = math.inf  # since the latest tick started (inf before the first)
+    gap_bounds_s: tuple[float, ...] = ()  # the gap histogram's bucket upper bounds (s)
+    gap_counts: tuple[int, ...] = ()  # gaps per bucket (not cumulative; one more: over the last)
+    gap_sum_s: float = 0.0  # sum of all gaps
 
 
 class TickStats:
@@ -77,9 +87,20 @@ class TickStats:
         self.total = 0.0
         self.overruns = 0
         self.restarts = 0
+        self.gap_bounds_s = tuple(b * self.period_s for b in GAP_BUCKETS)
+        self.gap_counts = [0] * (len(GAP_BUCKETS) + 1)
+        self.gap_sum_s = 0.0
+        self.last_start_s = math.nan  # time.perf_counter() at the latest tick's start
 
-    def record(self, lateness_s: float) -> None:
+    def record(self, lateness_s: float, start_s: float | None = None) -> None:
+        """One tick, ``lateness_s`` after its due time; ``start_s`` (perf_counter) when it started."""
         late = max(0.0, lateness_s)
+        if start_s is not None:
+            if self.last_start_s == self.last_start_s:  # not NaN: there was a tick before
+                gap = start_s - self.last_start_s
+                self.gap_sum_s += gap
+                self.gap_counts[bisect.bisect_left(self.gap_bounds_s, gap)] += 1
+            self.last_start_s = start_s
         self.ticks += 1
         self.last = late
         self.total += late
@@ -90,8 +111,11 @@ class TickStats:
 
     def snapshot(self, running: bool, in_thread: bool, priority: int = 0) -> LoopTiming:
         mean = self.total / self.ticks if self.ticks else 0.0
+        start = self.last_start_s
+        age = time.perf_counter() - start if start == start else math.inf
         return LoopTiming(self.period_s, self.ticks, self.last, self.max, mean, self.overruns,
-                          self.restarts, running, in_thread, priority)
+                          self.restarts, running, in_thread, priority, age, self.gap_bounds_s,
+                          tuple(self.gap_counts), self.gap_sum_s)
 
 
 class PacedLoop:
@@ -166,10 +190,10 @@ class PacedLoop:
                 start = time.perf_counter()
                 if start - due > self._max_behind:
                     self.stats.restarts += 1
-                    self.stats.record(start - due)
+                    self.stats.record(start - due, start)
                     due = math.floor(start / period) * period
                 else:
-                    self.stats.record(start - due)
+                    self.stats.record(start - due, start)
                 if not self._step():
                     break
                 due += period

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from app.routes import (
+    audit,
     gains,
     jobs,
     keys,
@@ -27,5 +28,6 @@ ALL_ROUTERS = (
     practice.router,
     telemetry.router,
     keys.router,
+    audit.router,
     view.router,
 )

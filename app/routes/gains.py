@@ -133,6 +133,8 @@ async def put_gains(axis: str, body: GainsIn, svc: Svc, who: Engineer) -> GainsO
             min_phase_margin_deg=floor,
         )
     svc.engine.set_gains(axis, cand)
+    svc.console.gains_changed(axis, cand)
+    await svc.audit.record(who, "gains.set", axis, {"changes": body.gains})
     return await _gains_out(svc, who, axis)
 
 
@@ -163,6 +165,9 @@ async def put_model(axis: str, body: DesignModelIn, svc: Svc, who: Engineer) -> 
         raise Refused(str(exc), model_check=figures_deg(exc.figures)) from None
     except ConfigError as exc:
         raise Refused(str(exc), model_check=figures_deg(figures)) from None
+    svc.console.model_changed(axis, version["model"], body.version_id)
+    await svc.audit.record(who, "model.set", axis, {"version_id": body.version_id,
+                                              "effects": version["model"]["effects"]})
     return await _gains_out(svc, who, axis, model_check=figures_deg(figures))
 
 

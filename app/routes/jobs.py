@@ -34,6 +34,7 @@ async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dic
     hidden_json = None if hidden is None else model_to_json(hidden, hidden_axis)
     job_id = svc.jobs.start("friction-id", body.model_dump(), friction_job, rig_config, hidden_json,
                             hidden_axis, body.axis)
+    await svc.audit.record(who, "job.start", str(job_id), {"kind": "friction-id", **body.model_dump()})
     return svc.db.get_job(job_id) or {"id": job_id}
 
 
@@ -52,4 +53,6 @@ async def get_job(job_id: RowId, svc: Svc, who: Viewer) -> dict[str, Any]:
 
 @router.post("/{job_id}/cancel", summary="Ask a running job to stop")
 async def cancel_job(job_id: RowId, svc: Svc, who: Engineer) -> dict[str, Any]:
-    return svc.jobs.cancel(job_id)
+    job = svc.jobs.cancel(job_id)
+    await svc.audit.record(who, "job.cancel", str(job_id))
+    return job

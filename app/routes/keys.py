@@ -37,6 +37,7 @@ async def list_keys(svc: Svc, who: Admin) -> list[KeyOut]:
 )
 async def post_key(body: KeyIn, svc: Svc, who: Admin) -> KeyOut:
     key_id, key = create_key(svc.db, body.name, Role.parse(body.role))
+    await svc.audit.record(who, "key.create", str(key_id), {"name": body.name, "role": body.role})
     return KeyOut(id=key_id, name=body.name, role=body.role, prefix=key[:9], revoked=False, key=key)
 
 
@@ -53,3 +54,5 @@ async def delete_key(key_id: RowId, svc: Svc, who: Admin) -> None:
     if keys[key_id].role == "admin" and [k.id for k in admins] == [key_id]:
         raise Conflict("this is the last active admin key; create another admin key before revoking it")
     svc.revoke_key(key_id)
+    revoked = keys[key_id]
+    await svc.audit.record(who, "key.revoke", str(key_id), {"name": revoked.name, "role": revoked.role})

@@ -40,6 +40,7 @@ async def put_pointing(body: PointingIn, svc: Svc, who: Operator) -> PointingOut
     svc.engine.require_no_fault()
     svc.lock.acquire(who)
     point_deg(svc, body.pan_deg, body.tilt_deg)
+    await svc.audit.record(who, "pointing.set", "", {"pan_deg": body.pan_deg, "tilt_deg": body.tilt_deg})
     return PointingOut(
         pan_target_deg=body.pan_deg,
         tilt_target_deg=body.tilt_deg,
@@ -52,6 +53,7 @@ async def put_pointing(body: PointingIn, svc: Svc, who: Operator) -> PointingOut
 async def delete_pointing(svc: Svc, who: Operator) -> dict[str, object]:
     svc.lock.release(who)
     svc.engine.release()
+    await svc.audit.record(who, "pointing.release")
     st = svc.engine.status()
     return {"mode": str(st.mode), "tracking": bool(st.tracking), "control_holder": svc.lock.describe()}
 
@@ -66,6 +68,8 @@ async def put_jog(axis: str, body: JogIn, svc: Svc, who: Operator) -> JogOut:
     svc.lock.acquire(who)
     timeout_s = svc.settings.jog_timeout_s
     svc.engine.jog(axis, math.radians(body.rate_deg_s), timeout_s=timeout_s)
+    await svc.audit.record(who, "jog.start" if body.rate_deg_s else "jog.stop", axis,  # renewals coalesce
+                     {"rate_deg_s": body.rate_deg_s} if body.rate_deg_s else None)
     return JogOut(axis=axis, rate_deg_s=body.rate_deg_s, auto_stop_s=timeout_s)  # type: ignore[arg-type]
 
 
@@ -74,16 +78,19 @@ async def delete_jog(axis: str, svc: Svc, who: Operator) -> JogOut:
     check_axis(axis)
     svc.lock.acquire(who)
     svc.engine.jog(axis, 0.0, timeout_s=svc.settings.jog_timeout_s)
+    await svc.audit.record(who, "jog.stop", axis)
     return JogOut(axis=axis, rate_deg_s=0.0, auto_stop_s=0.0)  # type: ignore[arg-type]
 
 
 @router.post("/control", summary="Take manual control (engineers may take it over with force=true)")
 async def take_control(svc: Svc, who: Operator, force: bool = False) -> dict[str, object]:
     svc.lock.acquire(who, force=force)
+    await svc.audit.record(who, "control.take", "", {"force": force})
     return {"control_holder": svc.lock.describe()}
 
 
 @router.delete("/control", summary="Give manual control back without moving")
 async def give_control(svc: Svc, who: Operator) -> dict[str, object]:
     svc.lock.release(who)
+    await svc.audit.record(who, "control.give")
     return {"control_holder": svc.lock.describe()}

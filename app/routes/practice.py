@@ -70,6 +70,7 @@ async def new_practice(body: PracticeNewIn, svc: Svc, who: Engineer) -> dict[str
         "measurements": [],
     }
     svc.db.put_value(KV_KEY, st)
+    await svc.audit.record(who, "practice.start", body.axis)  # not the seed: it would reveal the effect
     return public_view(st)
 
 
@@ -99,6 +100,7 @@ async def reveal(svc: Svc, who: Engineer) -> dict[str, Any]:
         raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
     st["revealed"] = True
     svc.db.put_value(KV_KEY, st)
+    await svc.audit.record(who, "practice.reveal", st["axis"])
     true_params: dict[str, float] = st["truth"]["params"]
     rows = []
     # The model the person worked on last: the most recently made version of any practice run.

@@ -40,6 +40,7 @@ async def put_preset(name: PresetName, body: PresetIn, svc: Svc, who: Operator) 
         except ConfigError as exc:
             raise Refused(str(exc), axis=axis, value_deg=value, limit_deg=limits[axis]) from None
     svc.db.put_preset(name, round(pan, 4), round(tilt, 4))
+    await svc.audit.record(who, "preset.store", name, {"pan_deg": round(pan, 4), "tilt_deg": round(tilt, 4)})
     return PresetOut(name=name, pan_deg=round(pan, 4), tilt_deg=round(tilt, 4))
 
 
@@ -51,6 +52,7 @@ async def recall_preset(name: PresetName, svc: Svc, who: Operator) -> PointingOu
     svc.engine.require_no_fault()  # 503 while a drive fault is latched
     svc.lock.acquire(who)
     point_deg(svc, p["pan_deg"], p["tilt_deg"])
+    await svc.audit.record(who, "preset.recall", name, {"pan_deg": p["pan_deg"], "tilt_deg": p["tilt_deg"]})
     return PointingOut(
         pan_target_deg=p["pan_deg"],
         tilt_target_deg=p["tilt_deg"],
@@ -63,3 +65,4 @@ async def recall_preset(name: PresetName, svc: Svc, who: Operator) -> PointingOu
 async def delete_preset(name: PresetName, svc: Svc, who: Operator) -> None:
     if not svc.db.delete_preset(name):
         raise NotFound(f"no preset {name!r}")
+    await svc.audit.record(who, "preset.delete", name)

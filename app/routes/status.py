@@ -7,9 +7,11 @@ import math
 from typing import Any
 
 from fastapi import APIRouter
+from fastapi.responses import JSONResponse
 
 from app import rig
 from app.auth import Engineer, Viewer
+from app.health import health_of
 from app.schemas import LoopOut, StatusOut
 from app.service import Service, Svc
 
@@ -36,6 +38,7 @@ def status_of(svc: Service) -> StatusOut:
         viewer=svc.viewer.scene_state() if svc.viewer is not None else None,
         driver=rig.driver_state(svc.engine),
         loop=loop_of(svc),
+        settings_warnings=list(svc.console.warnings),
     )
 
 
@@ -45,9 +48,11 @@ def loop_of(svc: Service) -> LoopOut | None:
     if timing is None:
         return None
     t = timing()
+    age_s = getattr(t, "last_tick_age_s", math.inf)
     return LoopOut(period_ms=1e3 * t.period_s, ticks=t.ticks, last_lateness_ms=1e3 * t.last_lateness_s,
                    max_lateness_ms=1e3 * t.max_lateness_s, mean_lateness_ms=1e3 * t.mean_lateness_s,
-                   overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority)
+                   overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority,
+                   last_tick_ms_ago=1e3 * age_s if math.isfinite(age_s) else None)
 
 
 @router.get("/status", response_model=StatusOut, summary="Angles (deg), mode, tracking, talker, faults")
@@ -65,9 +70,15 @@ async def get_viewer(svc: Svc, who: Viewer) -> dict[str, Any]:
     return {"enabled": True, **svc.viewer.scene_state()}
 
 
-@router.get("/health", summary="Liveness (no key needed)")
-async def health(svc: Svc) -> dict[str, Any]:
-    return {"ok": svc.engine_running, "engine_running": svc.engine_running, "audio": audio_state(svc)}
+@router.get(
+    "/health",
+    summary="Health (no key needed): 200, or 503 with the reasons when the control loop is stalled "
+    "or stopped or the drive is faulted",
+    responses={503: {"description": "unhealthy: `reasons` says why"}},
+)
+async def health(svc: Svc) -> JSONResponse:
+    ok, body = health_of(svc)
+    return JSONResponse(body | {"audio": audio_state(svc)}, status_code=200 if ok else 503)
 
 
 def audio_state(svc: Service) -> str:
@@ -81,6 +92,8 @@ def audio_state(svc: Service) -> str:
 async def clear_faults(svc: Svc, who: Engineer) -> StatusOut:
     """503 (DriverFault) when the drive refuses to re-enable."""
     driver = svc.engine.driver
+    faults = list(driver.faults())
     driver.clear_faults()
     driver.enable()
+    await svc.audit.record(who, "faults.clear", "", {"faults": faults})
     return status_of(svc)

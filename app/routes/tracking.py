@@ -1,6 +1,7 @@
 """PUT /tracking: follow the talker (audio target source) or hold the manual target.
 
 Turning tracking on is refused with 503 while a drive fault is latched; turning it off always works.
+The choice is stored and restored at the next start (app/console_state.py).
 """
 
 from __future__ import annotations
@@ -25,5 +26,7 @@ async def put_tracking(body: TrackingIn, svc: Svc, who: Operator) -> TrackingOut
         svc.lock.release(who)
     else:
         svc.engine.set_tracking(False)
+    svc.console.tracking_changed(body.enabled)
+    await svc.audit.record(who, "tracking.set", "", {"enabled": body.enabled})
     st = svc.engine.status()
     return TrackingOut(tracking=bool(st.tracking), mode=str(st.mode))

@@ -1,7 +1,9 @@
 // Keys page (admin): list, create (shown once), revoke.
 import { $, del, esc, get, post, toast } from "./api.js";
+import * as audit from "./audit.js";
 
 export function init() {
+  audit.init();
   $("key-form").addEventListener("submit", async (ev) => {
     ev.preventDefault();
     try {
@@ -13,7 +15,7 @@ export function init() {
   });
 }
 
-export function show() { load(); }
+export function show() { load(); audit.load(false); }
 
 async function load() {
   try {

@@ -139,3 +139,16 @@ def test_gain_tuning_previews_margins_and_blocks_unsafe_gains(page, server: Serv
     assert page.is_disabled("#tune-apply")
     before = server.api("GET", "/axes/pan/gains").json()["gains"]
     assert before["kd_v_s_per_rad"] == pytest.approx(kd, rel=1e-5)
+
+
+def test_admins_see_the_audit_log_on_the_keys_page(page, server: Server) -> None:  # type: ignore[no-untyped-def]
+    page.wait_for_function("window.console3dat_status !== undefined", timeout=T)
+    tracking = server.api("GET", "/status").json()["tracking"]
+    assert server.api("PUT", "/tracking", json={"enabled": tracking}).status_code == 200
+    page.click("#tabs button[data-tab=keys]")
+    page.wait_for_function(
+        "[...document.querySelectorAll('#audit-table code')].some(c => c.textContent === 'tracking.set')",
+        timeout=T,
+    )
+    row = page.text_content("#audit-table tr:nth-child(2)")
+    assert "tracking.set" in row and "admin" in row

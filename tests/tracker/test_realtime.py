@@ -71,3 +71,35 @@ def test_a_real_time_priority_is_taken_or_its_refusal_noted() -> None:
     loop.start()
     loop.join(5.0)
     assert (loop.priority == 10) != (loop.priority_error is not None)
+
+
+def test_tick_gaps_are_counted_in_period_buckets_and_a_stuck_tick_shows_its_age() -> None:
+    """Issue 11 item 7: the service exports tick gaps as a histogram and /health needs the age
+    of the latest tick; a stall of 4 periods is one gap of about 4 periods, the sum of the
+    gaps spans first to last tick, and while a tick is stuck its age grows past the stall."""
+    stamps: list[float] = []
+    stuck_age: list[float] = []
+    loop: PacedLoop
+
+    def step() -> bool:
+        stamps.append(time.perf_counter())
+        if len(stamps) == 5:
+            time.sleep(0.04)
+            stuck_age.append(loop.timing().last_tick_age_s)  # read during the stuck tick
+        return len(stamps) < 15
+
+    loop = PacedLoop(0.01, step)
+    assert loop.timing().last_tick_age_s == math.inf  # no tick yet
+    loop.start()
+    loop.join(5.0)
+    t = loop.timing()
+    assert sum(t.gap_counts) == t.ticks - 1 == 14
+    assert t.gap_sum_s == pytest.approx(stamps[-1] - stamps[0], abs=2e-3)
+    assert t.gap_bounds_s[2] == pytest.approx(0.011)  # 1.1 periods
+    gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    longest = max(gaps)
+    assert 0.04 <= longest < 0.1
+    bucket = next(i for i, b in enumerate(t.gap_bounds_s) if longest <= b)
+    assert t.gap_counts[bucket] >= 1 and t.gap_bounds_s[bucket] >= 0.04
+    assert stuck_age and stuck_age[0] >= 0.04
+    assert 0.0 <= t.last_tick_age_s < 5.0

@@ -141,6 +141,7 @@ class LiveSource:
         sd = _sounddevice()
         self.fs_hz = int(fs_hz)
         self.n_channels = int(n_channels)
+        self.overflows = 0  # blocks read after PortAudio lost input (the reader fell behind)
         try:
             sd.check_input_settings(device=device, channels=n_channels, samplerate=fs_hz)
             self._stream = sd.InputStream(device=device, channels=n_channels, samplerate=fs_hz,
@@ -156,9 +157,11 @@ class LiveSource:
         n = max(1, int(round(block_s * self.fs_hz)))
         while True:
             try:
-                data, _overflowed = self._stream.read(n)
+                data, overflowed = self._stream.read(n)
             except Exception as exc:
                 raise DriverFault(f"audio capture failed: {exc}") from exc
+            if overflowed:
+                self.overflows += 1
             yield np.asarray(data, dtype=float).T
 
     def close(self) -> None:
