@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tracker.resources import project_dir
 from tracker.targets import Target
 
 if TYPE_CHECKING:
@@ -50,7 +51,7 @@ CACHE_VERSION = 1
 AUDIO_CACHE_VERSION = 1
 BLOCK_S = 0.1  # streaming block
 MAX_BATCH_BLOCKS = 10  # at most this many blocks per push when catching up with the engine
-ARRAYS_DIR = Path(__file__).resolve().parent.parent / "examples" / "arrays"
+ARRAYS_DIR = project_dir("examples") / "arrays"
 
 
 @dataclass(frozen=True, slots=True)

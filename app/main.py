@@ -23,10 +23,12 @@ from app.metrics import MetricsMiddleware
 from app.routes import ALL_ROUTERS, ops
 from app.service import Service
 from app.settings import Settings, load_settings
+from app.view_proxy import VIEW_PATH
 from tracker.errors import ConfigError
 from tracker.plant.effects import load_effect_modules
+from tracker.resources import project_dir
 
-STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
+STATIC_DIR = project_dir("static")
 API_PREFIX = "/api/v1"
 
 DESCRIPTION = """
@@ -117,7 +119,8 @@ def create_app(settings: Settings | None = None, banner_port: int | None = None)
 
 def banner_lines(settings: Settings, svc: Service, port: int) -> list[str]:
     """What the start banner says: the console's address on the port bound, where the first
-    admin key is (only while that key still works), the 3D view on the port it bound."""
+    admin key is (only while that key still works), the 3D view through the console and viser's
+    own (loopback) port as bound."""
     shown_host = "127.0.0.1" if settings.host in {"0.0.0.0", "::"} else settings.host
     lines = [f"3DAT console: http://{shown_host}:{port}/  (API docs: /api/docs)"]
     if first_admin_key_valid(svc, settings.admin_key_path):
@@ -127,8 +130,11 @@ def banner_lines(settings: Settings, svc: Service, port: int) -> list[str]:
         lines.append("3DAT console: sign in with an API key (an admin creates keys on the Keys page)")
     if svc.viewer is not None:
         lines.append(
-            f"3DAT console: 3D view on http://{svc.viewer.host}:{svc.viewer.port}/ "
-            "(loopback only by default; it has no authentication)"
+            f"3DAT console: 3D view on http://{shown_host}:{port}{VIEW_PATH}/ (through the console, its keys)"
+        )
+        lines.append(
+            f"3DAT console: viser itself listens on http://{svc.viewer.host}:{svc.viewer.port}/ "
+            "(no authentication: keep it on loopback)"
         )
     elif settings.viewer_enabled:
         lines.append("3DAT console: the 3D view did not start (see the log)")

@@ -29,6 +29,7 @@ from app.metrics import Metrics
 from app.persist import SettingsStore
 from app.settings import Settings
 from app.telemetry import TelemetryHub
+from app.view_proxy import ViewSessions
 from app.work import WorkPool
 from app.workers import WorkerPool
 
@@ -62,6 +63,7 @@ class Service:
         self.engine: Any = None
         self.audio: Any = None
         self.viewer: Any = None
+        self.view_sessions = ViewSessions()
         self.audio_note: str | None = None
         self._engine_task: asyncio.Task[None] | None = None
         self.engine_started_s = math.nan  # time.perf_counter() when the engine's loop was started
@@ -109,6 +111,7 @@ class Service:
         """Revoke a key everywhere at once: stored, its WebSockets closed, its manual control freed."""
         self.db.revoke_key(key_id)
         self.hub.disconnect_key(key_id, "API key revoked")
+        self.view_sessions.end_key(key_id)
         self.lock.release_key(key_id)
 
     async def stop(self) -> None:

@@ -1,5 +1,6 @@
 """The viser 3D view of the rig: mount and camera frustum turning live, microphone array, talker
-estimate and current target. Runs on its own port, bound to loopback by default.
+estimate and current target. viser runs on its own port, bound to loopback by default; browsers
+reach it through the console (``/api/v1/view/``, same origin, same keys: app/view_proxy.py).
 
 viser has no authentication, so the share-URL feature (a public tunnel through an outside relay
 that any connected client can request with one message) is disabled for real: the server's
@@ -21,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from app.view_proxy import VIEW_PATH
+
 log = logging.getLogger("app.viewer")
 
 MOUNT_HEIGHT_M = 1.2
@@ -28,6 +31,7 @@ TRAIL_POINTS = 40
 TRAIL_PERIOD_S = 0.1
 ARRAY_HEIGHT_M = 1.0
 RAY_LENGTH_M = 2.5
+LOOPBACK_HOSTS = {"127.0.0.1", "::1", "localhost"}
 # Rotates viser's camera-frustum frame (looks along +z, +y down) to look along +x with +z up.
 _R_HEAD_FRUSTUM = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
@@ -72,8 +76,9 @@ def load_mics(path: Path | None) -> np.ndarray:
     """Microphone positions (n_mics, 3) in metres from an array JSON (validated by
     ``tracker.audio.array.load_array``); the shipped 4-mic square by default (as the meeting)."""
     from tracker.audio.array import load_array
+    from tracker.resources import project_dir
 
-    default = Path(__file__).resolve().parent.parent / "examples" / "arrays" / "square4_65mm.json"
+    default = project_dir("examples") / "arrays" / "square4_65mm.json"
     return np.asarray(load_array(path or default).positions_m, dtype=float)
 
 
@@ -102,6 +107,9 @@ class RigViewer:
             self.server.initial_camera.look_at = (0.6, 0.0, 1.0)
         self.host = host
         self.port = self.server.get_port()
+        if host not in LOOPBACK_HOSTS:
+            log.warning("viser listens on %s:%d with no authentication; browsers get the view through "
+                        "the console (%s/): set viewer_host = \"127.0.0.1\"", host, self.port, VIEW_PATH)
         self.head_mounted = bool(head_mounted)
         self._build_scene(mics_m)
         self._task: asyncio.Task[None] | None = None
@@ -228,7 +236,8 @@ class RigViewer:
     def scene_state(self) -> dict[str, Any]:
         """What the 3D scene shows now, read back from the viser handles (degrees)."""
         return {
-            "url": f"http://{self.host}:{self.port}/",
+            "url": VIEW_PATH + "/",  # through the console, with its keys (app/view_proxy.py)
+            "direct_url": f"http://{self.host}:{self.port}/",  # viser itself: no authentication
             "port": self.port,
             "pan_deg": round(math.degrees(angle_about_z(self.pan_frame.wxyz)), 3),
             "tilt_deg": round(-math.degrees(angle_about_y(self.tilt_frame.wxyz)), 3),

@@ -13,6 +13,7 @@ from app.routes import (
     status,
     telemetry,
     tracking,
+    view,
     workbench,
 )
 
@@ -28,4 +29,5 @@ ALL_ROUTERS = (
     telemetry.router,
     keys.router,
     audit.router,
+    view.router,
 )

@@ -250,9 +250,10 @@ async function setupViewer() {
   try {
     const v = await get("/viewer");
     if (!v.enabled) { $("viewer-box").innerHTML = `<p class="muted">${esc(v.note)}</p>`; return; }
-    // The view listens on its own port; reach it on the host this page came from.
-    const host = ["127.0.0.1", "localhost", "0.0.0.0"].includes(new URL(v.url).hostname) ? location.hostname : new URL(v.url).hostname;
-    const url = `http://${host}:${v.port}/`;
+    // The view comes through the console (same origin, works behind TLS): this call sets the
+    // view-session cookie that the iframe and its WebSocket carry (they cannot send the key).
+    const session = await post("/view/session");
+    const url = session.url;
     $("viewer-box").innerHTML = `<iframe title="3D view of the rig" src="${url}" loading="lazy"></iframe>`;
     $("viewer-link").href = url;
   } catch (e) { $("viewer-box").innerHTML = `<p class="muted">${esc(e.message)}</p>`; }

@@ -98,6 +98,8 @@ def test_banner_names_the_ports_actually_bound(tmp_path: Path) -> None:
         db.close()
     assert f"http://127.0.0.1:{port}/" in lines and port != 0
     assert "http://127.0.0.1:8082/" in lines and "8081" not in lines
+    # the address browsers use: through the console, on the console's bound port
+    assert f"3D view on http://127.0.0.1:{port}/api/v1/view/" in lines
 
 
 @pytest.mark.slow
@@ -127,7 +129,7 @@ def test_tracker_serve_prints_the_ports_it_bound(tmp_path: Path) -> None:
         lines: list[str] = []
         deadline = time.monotonic() + 60
         assert proc.stdout is not None
-        while time.monotonic() < deadline and not any("3D view" in line for line in lines):
+        while time.monotonic() < deadline and not any("viser itself" in line for line in lines):
             line = proc.stdout.readline()
             if not line:
                 break
@@ -136,7 +138,9 @@ def test_tracker_serve_prints_the_ports_it_bound(tmp_path: Path) -> None:
         port = int(console.split("http://127.0.0.1:")[1].split("/")[0])
         assert httpx.get(f"http://127.0.0.1:{port}/api/v1/health", timeout=10).status_code == 200
         view = next(line for line in lines if "3D view on" in line)
-        view_port = int(view.split("http://127.0.0.1:")[1].split("/")[0])
+        assert f"http://127.0.0.1:{port}/api/v1/view/" in view  # through the console
+        viser = next(line for line in lines if "viser itself listens on" in line)
+        view_port = int(viser.split("http://127.0.0.1:")[1].split("/")[0])
         assert view_port != taken.getsockname()[1]
         with socket.create_connection(("127.0.0.1", view_port), timeout=5):
             pass

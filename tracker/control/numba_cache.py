@@ -12,6 +12,8 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
+from tracker.jit_cache import cache_dir_for
+
 _HERE = Path(__file__).resolve().parent
 _SOURCES = (
     _HERE / "loop.py",
@@ -33,10 +35,11 @@ def purge_stale_cache(
 ) -> bool:
     """Remove the callers' cache files if the inlined sources changed. Returns True if purged.
 
-    ``cache_dir`` holds the callers' cache (default: this package's ``__pycache__``); other
-    packages whose compiled loops inline the plant pass their own (``tracker.workbench``).
+    ``cache_dir`` holds the callers' cache (default: where numba caches this package, its
+    ``__pycache__`` or under ``NUMBA_CACHE_DIR``); other packages whose compiled loops inline the
+    plant pass their own (``tracker.workbench``).
     """
-    cache = cache_dir or _HERE / "__pycache__"
+    cache = cache_dir or cache_dir_for(_HERE)
     digest = hashlib.sha256()
     for src in sources:
         try:
@@ -50,7 +53,7 @@ def purge_stale_cache(
     except OSError:
         pass
     try:
-        cache.mkdir(exist_ok=True)
+        cache.mkdir(parents=True, exist_ok=True)
         for f in cache.iterdir():
             if f.name.startswith(callers) and ".nb" in f.suffix:
                 f.unlink(missing_ok=True)

@@ -18,7 +18,6 @@ so its frame is the pan frame. Figures (targets from issue 4, item 7):
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,10 +30,11 @@ from tracker.audio.speech import talker_speech
 from tracker.audio.tracking import TrackerSettings, TrackPoint
 from tracker.audio.vad import SpeechDetector
 from tracker.errors import ConfigError
+from tracker.resources import project_dir
 
 FloatArray = NDArray[np.float64]
 
-_ARRAYS_DIR = Path(__file__).resolve().parents[2] / "examples" / "arrays"
+_ARRAYS_DIR = project_dir("examples") / "arrays"
 _DT_S = 1e-3
 _ON_TARGET_RAD = np.deg2rad(5.0)
 # Seated talkers: (azimuth from the camera, horizontal distance) and the walker's two ends.

@@ -16,18 +16,19 @@ What is specific to one physical effect lives in that effect's file in ``tracker
 from pathlib import Path
 
 from tracker.control.numba_cache import purge_stale_cache
+from tracker.jit_cache import cache_dir_for
 
 _HERE = Path(__file__).resolve().parent
 _PLANT = _HERE.parent / "plant" / "simulate.py"
 # The closed-loop recorder and the k-step shooting inline the plant's ``advance``: numba would
 # keep their compiled code after plant/simulate.py changed.
 purge_stale_cache(
-    _HERE / "experiments" / "__pycache__",
+    cache_dir_for(_HERE / "experiments"),
     (_PLANT, _HERE / "experiments" / "experiments.py"),
     ("experiments.",),
 )
 purge_stale_cache(
-    _HERE / "diagnose" / "__pycache__",
+    cache_dir_for(_HERE / "diagnose"),
     (_PLANT, _HERE / "diagnose" / "kstep.py"),
     ("kstep.",),
 )
