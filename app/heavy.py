@@ -33,9 +33,12 @@ def fit_summary(meas: Measurement, model: AxisModel, extra: dict[str, Any] | Non
 
 def fitter_extra(res: Any) -> dict[str, Any]:  # noqa: ANN401 - a FitResult
     """What a version keeps from the fitter: parameters with standard errors, convergence."""
+    from tracker.workbench.fit.uncertainty import parameter_certainty
+
     return {
         "params": dict(res.params),
         "stderr": dict(res.stderr),
+        "certainty": [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)],
         "converged": bool(res.converged),
         "free": list(res.free),
     }

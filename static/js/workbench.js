@@ -112,6 +112,19 @@ async function compare(versionId) {
   ].map(([k, v]) => `<div class="metric"><div class="k">${k}</div><div class="v">${v}</div></div>`).join("");
   showRegimes(m);
   showResiduals(m.residual_analysis, m.residual_verdict);
+  showParams(versions.find((v) => v.id === m.version_id));
+}
+
+// Every fitted parameter with its standard error; a flag and the experiment that pins it when
+// this run does not (relative error above 10 % or a strong correlation: fit/uncertainty.py).
+function showParams(v) {
+  const rows = (v && v.fit && v.fit.certainty) || [];
+  $("wb-params").innerHTML = rows.length ? `<table><tr><th>parameter</th><th>value</th><th>± stderr</th><th></th></tr>${rows.map((c) => `
+    <tr class="${c.poorly_determined ? "poor" : ""}" title="${esc(c.poorly_determined ? `${c.reason}. To pin it: ${c.experiment || "a run that excites it more"}` : "well determined by this run")}">
+    <td>${esc(c.name)}</td><td class="num">${Number(c.value).toPrecision(4)}</td>
+    <td class="num">${Number(c.stderr).toPrecision(2)} (${c.relative_stderr === null ? "∞" : fmt(100 * c.relative_stderr, 1)} %)</td>
+    <td>${c.poorly_determined ? `<span class="badge warn">poorly determined</span>` : ""}</td></tr>`).join("")}</table>
+    ${rows.filter((c) => c.poorly_determined).map((c) => `<div class="muted">${esc(c.name)}: ${esc(c.reason)}. To pin it: ${esc(c.experiment || "a run that excites it more")}</div>`).join("")}` : "";
 }
 
 function showRegimes(m) {
@@ -164,7 +177,11 @@ export async function diagnose() {
       <div>fit would reach <span class="fit">${fmt(c.fit_percent, 2)} %</span></div>
       <div class="evidence">${esc(c.evidence || "")}</div>
       ${c.confused_with && c.confused_with.length ? `<div class="params">looks like ${esc(c.confused_with.join(", "))}${c.experiment ? ` — to tell apart: ${esc(c.experiment)}` : ""}</div>` : ""}
-      <div class="params">${Object.entries(c.params || {}).map(([k, v]) => `${esc(k)} = ${Number(v).toPrecision(4)}${c.stderr && c.stderr[k] ? ` ± ${Number(c.stderr[k]).toPrecision(2)}` : ""}`).join("<br>")}</div>
+      <div class="params">${Object.entries(c.params || {}).map(([k, v]) => {
+        const se = c.stderr && c.stderr[k];
+        const poor = se && Math.abs(se) > 0.1 * Math.abs(v);
+        return `${esc(k)} = ${Number(v).toPrecision(4)}${se ? ` ± ${Number(se).toPrecision(2)}` : ""}${poor ? ` <span class="badge warn" title="standard error above 10 % of the value${c.experiment ? `; to pin it: ${esc(c.experiment)}` : ""}">poorly determined</span>` : ""}`;
+      }).join("<br>")}</div>
       <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") ? "" : "disabled"}>Add effect</button>
     </div>`).join("");
     $("diag-notes").innerHTML = (d.notes || []).map(esc).join("<br>");

@@ -27,6 +27,7 @@ from tracker.plant.model import AxisModel
 from tracker.workbench.compare.compare import DEFAULT_REPLICAS, CompareResult, compare_model
 from tracker.workbench.compare.consistency import ResidualVerdict
 from tracker.workbench.fit.fit import FitResult, fit_model
+from tracker.workbench.fit.uncertainty import parameter_certainty
 from tracker.workbench.measurements.data import Measurement, read_log
 
 
@@ -188,13 +189,28 @@ def format_fit(meas: Measurement, res: FitResult) -> str:
         f"({res.method}, horizon {res.horizon_s * 1e3:.0f} ms, {res.n_evaluations} evaluations, "
         f"{'converged' if res.converged else 'NOT converged'}, {res.elapsed_s:.2f} s)",
         "",
-        f"{'parameter':<28} {'value':>12} {'± stderr':>11} {'start':>12}  unit",
+        f"{'parameter':<28} {'value':>12} {'± stderr':>11} {'rel.':>6} {'start':>12}  unit",
     ]
+    cert = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated)}
     for k, v in res.params.items():
         se = res.stderr.get(k)
+        c = cert.get(k)
         se_txt = f"{se:11.3g}" if se is not None else f"{'fixed':>11}"
+        rel_txt = (
+            f"{100 * c.relative_stderr:5.1f}%"
+            if c is not None and math.isfinite(c.relative_stderr)
+            else " " * 6
+        )
+        flag = "  POORLY DETERMINED" if c is not None and c.poorly_determined else ""
         start = res.start_params.get(k, v)
-        lines.append(f"{k:<28} {v:12.5g} {se_txt} {start:12.5g}  {get_param(k).unit}")
+        lines.append(f"{k:<28} {v:12.5g} {se_txt} {rel_txt} {start:12.5g}  {get_param(k).unit}{flag}")
+    poor = [c for c in cert.values() if c.poorly_determined]
+    if poor:
+        lines += ["", "poorly determined by this run (and the experiment that pins it):"]
+        for c in poor:
+            lines.append(f"  {c.name}: {c.reason}")
+            if c.experiment:
+                lines.append(f"    → {c.experiment}")
     lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
 
@@ -243,7 +259,9 @@ def run_fit(args: argparse.Namespace) -> int:
         meas, model, free=free, horizon_s=args.horizon, fit_gain=args.fit_gain, method=args.method
     )
     if args.json:
-        print(_json(res.to_dict()))
+        out = res.to_dict()
+        out["certainty"] = [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)]
+        print(_json(out))
     else:
         print(format_fit(meas, res))
     return 0
