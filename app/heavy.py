@@ -33,9 +33,12 @@ def fit_summary(meas: Measurement, model: AxisModel, extra: dict[str, Any] | Non
 
 def fitter_extra(res: Any) -> dict[str, Any]:  # noqa: ANN401 - a FitResult
     """What a version keeps from the fitter: parameters with standard errors, convergence."""
+    from tracker.workbench.fit.uncertainty import parameter_certainty
+
     return {
         "params": dict(res.params),
         "stderr": dict(res.stderr),
+        "certainty": [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)],
         "converged": bool(res.converged),
         "free": list(res.free),
     }
@@ -71,10 +74,20 @@ def compare(
     text: str, label: str, model_json: dict[str, Any], horizon_s: float | None, mode: str
 ) -> dict[str, Any]:
     """A model version set against the measurement, with residual analysis and plot series."""
+    from tracker.workbench.compare.compare import DEFAULT_REPLICAS
+
     meas = parse_log(text, label)
-    cmp = compare_model(meas, model_from_json(model_json), horizon_s=horizon_s, mode=mode)  # type: ignore[arg-type]
+    cmp = compare_model(
+        meas,
+        model_from_json(model_json),
+        horizon_s=horizon_s,
+        mode=mode,  # type: ignore[arg-type]
+        replicas=DEFAULT_REPLICAS if mode == "k_step" else 0,
+    )
     out = cmp.to_dict(arrays=False)
     out["residual_analysis"] = cmp.residuals.to_dict(arrays=True)
+    if cmp.verdict is not None:
+        out["residual_verdict"] = cmp.verdict.to_dict(arrays=True)
     out["series"] = series_deg(
         cmp.t_s, measured=cmp.theta_meas_rad, model=cmp.theta_pred_rad, residual=cmp.residual_rad
     )
@@ -82,10 +95,20 @@ def compare(
 
 
 def diagnose(text: str, label: str, model_json: dict[str, Any]) -> dict[str, Any]:
-    """The missing effects of a model version, ranked."""
+    """The missing effects of a model version, ranked, with the residual test of the version and
+    how the two verdicts fit together (``residual_verdict``, ``agreement``)."""
+    from tracker.workbench.compare.compare import DEFAULT_REPLICAS
+    from tracker.workbench.compare.consistency import agreement
     from tracker.workbench.diagnose.diagnose import diagnose as rank
 
-    return plain(rank(parse_log(text, label), model_from_json(model_json)).to_dict())
+    meas = parse_log(text, label)
+    model = model_from_json(model_json)
+    out = rank(meas, model).to_dict()
+    verdict = compare_model(meas, model, replicas=DEFAULT_REPLICAS).verdict
+    if verdict is not None:
+        out["residual_verdict"] = verdict.to_dict()
+        out["agreement"] = agreement(verdict, out.get("verdict"))  # type: ignore[arg-type]
+    return plain(out)
 
 
 def refit(

@@ -88,6 +88,8 @@ class Service:
         self.hub.start(self.engine)
         if s.audio_enabled:
             self.audio, self.audio_note = rig.attach_audio(self.engine, s)
+            if s.track_on_start and self.audio is not None:
+                self.engine.set_tracking(True)  # a newcomer first sees the camera follow the talker
         if s.viewer_enabled:
             from app.viewer import RigViewer, array_is_head_mounted, load_mics
 

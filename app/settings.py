@@ -59,6 +59,9 @@ class Settings(BaseSettings):
         "(docs/workbench.md, 'Your own effect'); the engine also reads TRACKER_EFFECTS itself",
     )
     audio_enabled: bool = Field(True, description="use the simulated room as the tracking target source")
+    track_on_start: bool = Field(
+        True, description="a fresh start follows the talker (tracking on once the target source is attached)"
+    )
     array_file: Path | None = Field(
         None, description="microphone array JSON; default: the shipped 4-mic square"
     )

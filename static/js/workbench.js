@@ -13,7 +13,7 @@ export function init(s) {
   makeChart($("plot-overlay"), { height: 230, xLabel: "time (s)", yLabel: "θ °", series: [line("measured", C.actual, { width: 2.4 }), line("model", C.target, { dash: [5, 3], width: 1.4 })] });
   makeChart($("plot-residual"), { height: 140, xLabel: "time (s)", yLabel: "residual °", series: [line("residual", "#6f42c1")] });
   makeChart($("plot-acf"), { height: 150, yLabel: "autocorr.", xLabel: "lag (s)",
-    series: [line("residual autocorrelation", C.actual), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });
+    series: [line("residual autocorrelation", C.actual), line("right model: highest", C.bound, { dash: [4, 4], width: 1 }), line("right model: lowest", C.bound, { dash: [4, 4], width: 1 })] });
   makeChart($("plot-ccf"), { height: 150, yLabel: "cross-corr.", xLabel: "lag (s)",
     series: [line("input–residual", C.target), line("+bound", C.bound, { dash: [4, 4], width: 1 }), line("−bound", C.bound, { dash: [4, 4], width: 1 })] });
   makeChart($("plot-versions"), {
@@ -111,7 +111,20 @@ async function compare(versionId) {
     ["RMS error", `${fmt(m.rms_deg, 4)}°`], ["Horizon", m.horizon_s ? `${fmt(m.horizon_s * 1000, 0)} ms ahead` : "free run"],
   ].map(([k, v]) => `<div class="metric"><div class="k">${k}</div><div class="v">${v}</div></div>`).join("");
   showRegimes(m);
-  showResiduals(m.residual_analysis);
+  showResiduals(m.residual_analysis, m.residual_verdict);
+  showParams(versions.find((v) => v.id === m.version_id));
+}
+
+// Every fitted parameter with its standard error; a flag and the experiment that pins it when
+// this run does not (relative error above 10 % or a strong correlation: fit/uncertainty.py).
+function showParams(v) {
+  const rows = (v && v.fit && v.fit.certainty) || [];
+  $("wb-params").innerHTML = rows.length ? `<table><tr><th>parameter</th><th>value</th><th>± stderr</th><th></th></tr>${rows.map((c) => `
+    <tr class="${c.poorly_determined ? "poor" : ""}" title="${esc(c.poorly_determined ? `${c.reason}. To pin it: ${c.experiment || "a run that excites it more"}` : "well determined by this run")}">
+    <td>${esc(c.name)}</td><td class="num">${Number(c.value).toPrecision(4)}</td>
+    <td class="num">${Number(c.stderr).toPrecision(2)} (${c.relative_stderr === null ? "∞" : fmt(100 * c.relative_stderr, 1)} %)</td>
+    <td>${c.poorly_determined ? `<span class="badge warn">poorly determined</span>` : ""}</td></tr>`).join("")}</table>
+    ${rows.filter((c) => c.poorly_determined).map((c) => `<div class="muted">${esc(c.name)}: ${esc(c.reason)}. To pin it: ${esc(c.experiment || "a run that excites it more")}</div>`).join("")}` : "";
 }
 
 function showRegimes(m) {
@@ -125,14 +138,29 @@ function showRegimes(m) {
   $("regime-bars").innerHTML = html(rows) + (bins.length ? `<h3>By position</h3>` + html(bins) : "");
 }
 
-function showResiduals(r) {
+// The residual test: the measured residual against what a right model leaves on this run
+// (simulated replicas), overall and per regime. The autocorrelation is drawn inside the
+// replicas' envelope; the ±2.58/√N white-noise bound is not drawn (k-step residuals are
+// correlated by construction, so it would condemn a right model too).
+function showResiduals(r, v) {
   if (!r || !r.autocorr_lags_s) return;
-  const a = r.autocorr_lags_s, b = r.autocorr_bound;
-  setData($("plot-acf"), [a, r.autocorr, a.map(() => b), a.map(() => -b)]);
+  const a = r.autocorr_lags_s;
+  const hi = v && v.autocorr_band_high ? v.autocorr_band_high : a.map(() => r.autocorr_bound);
+  const lo = v && v.autocorr_band_low ? v.autocorr_band_low : a.map(() => -r.autocorr_bound);
+  setData($("plot-acf"), [a, r.autocorr, hi, lo]);
   const x = r.xcorr_lags_s, xb = r.xcorr_bound;
   setData($("plot-ccf"), [x, r.xcorr, x.map(() => xb), x.map(() => -xb)]);
-  $("resid-note").textContent = `Residuals ${r.white ? "look white" : "are correlated in time"} (${fmt(100 * r.autocorr_outside_fraction, 0)} % of lags outside the bound); `
-    + `${r.independent_of_input ? "independent of the input" : `correlated with the input, peak at ${fmt(1000 * r.xcorr_peak_lag_s, 0)} ms`}.`;
+  const note = $("resid-note");
+  if (!v) {
+    note.textContent = "Free simulation: no residual test (it judges the k-step prediction).";
+    note.dataset.consistent = "";
+    return;
+  }
+  note.dataset.consistent = v.consistent ? "yes" : "no";
+  const rows = Object.entries(v.regimes || {}).map(([k, c]) => `<tr class="${c.ok ? "" : "above"}"><td>${esc(k.replaceAll("_", " "))}</td>
+    <td class="num">${fmt(c.ratio, 2)}×</td><td>${c.ok ? "within band" : "ABOVE band"}</td></tr>`).join("");
+  note.innerHTML = `<b id="resid-verdict">${v.consistent ? "Residual consistent with a right model" : "Model error left in the residual"}</b><br>${esc(v.explanation)}
+    <table class="resid-regimes"><tr><th>regime</th><th>RMS ÷ right model</th><th></th></tr>${rows}</table>`;
 }
 
 export async function diagnose() {
@@ -141,14 +169,19 @@ export async function diagnose() {
   setBusy(true);
   try {
     const d = await post(`/workbench/measurements/${selected}/diagnose`, {});
-    $("wb-verdict").textContent = d.verdict ? `Most likely missing: ${d.verdict}` : "Nothing significant is missing: the model explains the data.";
+    $("wb-verdict").textContent = (d.verdict ? `Most likely missing: ${d.verdict}` : "Nothing significant is missing: the model explains the data.")
+      + (d.agreement ? ` ${d.agreement}` : "");
     const cands = d.candidates || [];
     $("diag-cards").innerHTML = cands.map((c, i) => `<div class="dcard ${c.effect === d.verdict ? "top" : ""} ${c.significant ? "" : "insignificant"}">
       <h3><span>${i + 1}. ${esc(c.effect)}</span><span class="badge ${c.significant ? "sig" : ""}">${c.significant ? "significant" : "not significant"}</span></h3>
       <div>fit would reach <span class="fit">${fmt(c.fit_percent, 2)} %</span></div>
       <div class="evidence">${esc(c.evidence || "")}</div>
       ${c.confused_with && c.confused_with.length ? `<div class="params">looks like ${esc(c.confused_with.join(", "))}${c.experiment ? ` — to tell apart: ${esc(c.experiment)}` : ""}</div>` : ""}
-      <div class="params">${Object.entries(c.params || {}).map(([k, v]) => `${esc(k)} = ${Number(v).toPrecision(4)}${c.stderr && c.stderr[k] ? ` ± ${Number(c.stderr[k]).toPrecision(2)}` : ""}`).join("<br>")}</div>
+      <div class="params">${Object.entries(c.params || {}).map(([k, v]) => {
+        const se = c.stderr && c.stderr[k];
+        const poor = se && Math.abs(se) > 0.1 * Math.abs(v);
+        return `${esc(k)} = ${Number(v).toPrecision(4)}${se ? ` ± ${Number(se).toPrecision(2)}` : ""}${poor ? ` <span class="badge warn" title="standard error above 10 % of the value${c.experiment ? `; to pin it: ${esc(c.experiment)}` : ""}">poorly determined</span>` : ""}`;
+      }).join("<br>")}</div>
       <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") ? "" : "disabled"}>Add effect</button>
     </div>`).join("");
     $("diag-notes").innerHTML = (d.notes || []).map(esc).join("<br>");

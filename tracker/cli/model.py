@@ -24,8 +24,10 @@ import numpy as np
 from tracker.errors import ConfigError, TrackerError
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
-from tracker.workbench.compare.compare import CompareResult, compare_model
+from tracker.workbench.compare.compare import DEFAULT_REPLICAS, CompareResult, compare_model
+from tracker.workbench.compare.consistency import ResidualVerdict
 from tracker.workbench.fit.fit import FitResult, fit_model
+from tracker.workbench.fit.uncertainty import parameter_certainty
 from tracker.workbench.measurements.data import Measurement, read_log
 
 
@@ -112,11 +114,17 @@ def _header(meas: Measurement, model: AxisModel) -> str:
     )
 
 
-def format_compare(meas: Measurement, model: AxisModel, res: CompareResult) -> str:
+def format_compare(meas: Measurement, model: AxisModel, res: CompareResult, origin: str = "") -> str:
     """The comparison as a person reads it."""
-    how = f"{res.horizon_s * 1e3:.0f} ms ahead" if res.horizon_s else "free simulation"
+    how = (
+        f"{res.horizon_s * 1e3:.0f} ms ahead (k-step: each sample predicted from the state "
+        f"{res.horizon_s * 1e3:.0f} ms before with the measured command)"
+        if res.horizon_s
+        else "free simulation of the whole run"
+    )
     lines = [
         _header(meas, model),
+        *([origin] if origin else []),
         f"prediction: {how}",
         f"fit {res.fit_percent:.3f} %   increment fit {res.fit_percent_increment:.2f} %   "
         f"RMS {res.rms_deg:.4g} deg",
@@ -140,11 +148,36 @@ def format_compare(meas: Measurement, model: AxisModel, res: CompareResult) -> s
     )
     ra = res.residuals
     lines.append(
-        f"residual whiteness: {100 * ra.autocorr_outside_fraction:.0f} % of lags outside the 99 % bound "
-        f"(±{ra.autocorr_bound:.3f}); input–residual correlation peaks at {ra.xcorr_peak_lag_s * 1e3:.0f} ms "
+        f"input–residual correlation peaks at {ra.xcorr_peak_lag_s * 1e3:.0f} ms "
         f"({ra.xcorr_peak:+.2f}, bound ±{ra.xcorr_bound:.2f})"
     )
+    if res.verdict is not None:
+        lines += ["", *format_verdict(res.verdict)]
+    if res.mode == "free":
+        lines += [
+            "",
+            "free simulation: the axis integrates, so one simulation of the whole run drifts away on "
+            "the smallest torque error and its fit falls far below 0 % even for a good model; read "
+            "the k-step figure (the default, --mode k_step).",
+        ]
     return "\n".join(lines)
+
+
+def format_verdict(v: ResidualVerdict) -> list[str]:
+    """The residual test as a person reads it: verdict, why, and the regimes against their band."""
+    import textwrap
+
+    head = (
+        "RESIDUAL TEST: consistent with a right model" if v.consistent else "RESIDUAL TEST: model error left"
+    )
+    out = [head]
+    out += textwrap.wrap(v.explanation(), 100, initial_indent="  ", subsequent_indent="  ")
+    out.append(f"  {'regime':<12} {'RMS rad':>10} {'right model':>12} {'bound':>10}  ")
+    for name, c in v.regimes.items():
+        out.append(
+            f"  {name:<12} {c.measured:10.3g} {c.expected:12.3g} {c.bound:10.3g}  {'ok' if c.ok else 'ABOVE'}"
+        )
+    return out
 
 
 def format_fit(meas: Measurement, res: FitResult) -> str:
@@ -156,27 +189,60 @@ def format_fit(meas: Measurement, res: FitResult) -> str:
         f"({res.method}, horizon {res.horizon_s * 1e3:.0f} ms, {res.n_evaluations} evaluations, "
         f"{'converged' if res.converged else 'NOT converged'}, {res.elapsed_s:.2f} s)",
         "",
-        f"{'parameter':<28} {'value':>12} {'± stderr':>11} {'start':>12}  unit",
+        f"{'parameter':<28} {'value':>12} {'± stderr':>11} {'rel.':>6} {'start':>12}  unit",
     ]
+    cert = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated)}
     for k, v in res.params.items():
         se = res.stderr.get(k)
+        c = cert.get(k)
         se_txt = f"{se:11.3g}" if se is not None else f"{'fixed':>11}"
+        rel_txt = (
+            f"{100 * c.relative_stderr:5.1f}%"
+            if c is not None and math.isfinite(c.relative_stderr)
+            else " " * 6
+        )
+        flag = "  POORLY DETERMINED" if c is not None and c.poorly_determined else ""
         start = res.start_params.get(k, v)
-        lines.append(f"{k:<28} {v:12.5g} {se_txt} {start:12.5g}  {get_param(k).unit}")
+        lines.append(f"{k:<28} {v:12.5g} {se_txt} {rel_txt} {start:12.5g}  {get_param(k).unit}{flag}")
+    poor = [c for c in cert.values() if c.poorly_determined]
+    if poor:
+        lines += ["", "poorly determined by this run (and the experiment that pins it):"]
+        for c in poor:
+            lines.append(f"  {c.name}: {c.reason}")
+            if c.experiment:
+                lines.append(f"    → {c.experiment}")
     lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
+
+
+def compare_start(meas: Measurement, model: AxisModel, args: argparse.Namespace) -> tuple[AxisModel, str]:
+    """The model ``compare`` sets against the data, and where its parameters come from.
+
+    An axis preset's numbers describe the seed's mount, not the axis in the log (the EMPS axis
+    weighs 95 kg where the pan preset has J = 0.002 kg·m²): predicted with them, the first
+    figure is thousands of percent below zero and says nothing. So unless ``--preset`` (or a
+    ``--set``), the parameters are the data's own linear inverse-dynamics estimate — what
+    ``fit`` starts from — and the output says so.
+    """
+    if args.preset or args.set:
+        return model, "parameters: as given (preset and --set)"
+    start = fit_model(meas, model, method="inverse_dynamics")
+    return (
+        start.model,
+        "parameters: estimated from this log by inverse dynamics (`tracker model fit` refines them)",
+    )
 
 
 @_guard
 def run_compare(args: argparse.Namespace) -> int:
     """``tracker model compare``."""
     meas = read_log(args.data)
-    model = model_from_args(args)
-    res = compare_model(meas, model, horizon_s=args.horizon, mode=args.mode)
+    model, origin = compare_start(meas, model_from_args(args), args)
+    res = compare_model(meas, model, horizon_s=args.horizon, mode=args.mode, replicas=args.replicas)
     if args.json:
-        print(_json(res.to_dict()))
+        print(_json({**res.to_dict(), "parameters": origin, "params": dict(model.params)}))
     else:
-        print(format_compare(meas, model, res))
+        print(format_compare(meas, model, res, origin))
     return 0
 
 
@@ -192,10 +258,114 @@ def run_fit(args: argparse.Namespace) -> int:
     res = fit_model(
         meas, model, free=free, horizon_s=args.horizon, fit_gain=args.fit_gain, method=args.method
     )
+    kept = record_version(args, meas, res) if not args.no_keep else ""
     if args.json:
-        print(_json(res.to_dict()))
+        out = res.to_dict()
+        out["certainty"] = [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)]
+        print(_json(out))
     else:
         print(format_fit(meas, res))
+        if kept:
+            print(kept)
+    return 0
+
+
+DEFAULT_WORKSPACE = ".tracker-workspace"
+
+
+def history_name(path: str) -> str:
+    """The name a log's versions are kept under: its file stem and a hash of its bytes."""
+    import hashlib
+    import re
+    from pathlib import Path
+
+    data = Path(path).read_bytes()
+    stem = re.sub(r"[^A-Za-z0-9_.-]", "_", Path(path).stem)[:48] or "log"
+    return f"{stem}-{hashlib.sha1(data).hexdigest()[:8]}"
+
+
+def record_version(args: argparse.Namespace, meas: Measurement, res: FitResult) -> str:
+    """Keep ``res`` as the next version of the log's history in ``--workspace``; a line to print."""
+    from tracker.workbench.versions import ModelVersion, VersionStore
+
+    store = VersionStore(args.workspace)
+    name = history_name(args.data)
+    hist = store.load(name)
+    if hist.versions:
+        before = set(hist.latest.model.effects)
+        now = set(res.model.effects)
+        change = "".join(f"+{e}" for e in res.model.effects if e not in before)
+        change += "".join(f"-{e}" for e in hist.latest.model.effects if e not in now)
+        change = change or "refit"
+    else:
+        change = "base" + "".join(f"+{e}" for e in res.model.effects)
+    number = hist.latest.number + 1 if hist.versions else 1
+    store.save(name, hist.appended(ModelVersion.from_fit(number, change, res, meas.source)))
+    return f"kept as version {number} ({change}) of {name} in {args.workspace}"
+
+
+def format_history(meas: Measurement, versions: list[Any], floor_rad: float | None) -> str:
+    """The error falling version by version, and the error budget of the latest version."""
+    lines = [
+        f"{meas.source}: {len(versions)} version(s)",
+        f"{'v':>3} {'change':<24} {'RMS deg':>11} {'fit %':>9} {'incr. fit %':>11}  explained deg",
+    ]
+    prev = None
+    for v in versions:
+        expl = "" if prev is None else f"{prev - v.rms_deg:+.4g}"
+        lines.append(
+            f"{v.number:>3} {v.change:<24} {v.rms_deg:11.4g} {v.fit_percent:9.3f} "
+            f"{v.fit_percent_increment:11.2f}  {expl}"
+        )
+        prev = v.rms_deg
+    if floor_rad is not None and versions:
+        floor = math.degrees(floor_rad)
+        last = versions[-1].rms_deg
+        lines += [
+            "",
+            "error budget of the latest version (RMS, deg):",
+            f"  floor (sensor + load disturbance, simulated right model): {floor:.4g}",
+        ]
+        for a, b in zip(versions, versions[1:], strict=False):
+            lines.append(f"  explained by {b.change:<26}: {a.rms_deg - b.rms_deg:.4g}")
+        left = last - floor
+        if left <= 0:
+            lines.append(
+                "  left above the floor: none — the error is at the floor: the model is done for this run"
+            )
+        else:
+            lines.append(f"  left above the floor: {left:.4g} ({100 * left / last:.0f} % of the error)")
+    return "\n".join(lines)
+
+
+@_guard
+def run_history(args: argparse.Namespace) -> int:
+    """``tracker model history``."""
+    from tracker.workbench.versions import VersionStore
+
+    meas = read_log(args.data)
+    hist = VersionStore(args.workspace).load(history_name(args.data))
+    if not hist.versions:
+        raise ConfigError(
+            f"{args.data}: no versions in {args.workspace}; make one with "
+            f"`tracker model fit {args.data} --axis pan|tilt --workspace {args.workspace}`"
+        )
+    floor = None
+    if args.replicas > 0:
+        res = compare_model(meas, hist.latest.model, replicas=args.replicas)
+        floor = float(res.verdict.rms_rad.expected) if res.verdict is not None else None
+    vs = list(hist.versions)
+    if args.json:
+        print(
+            _json(
+                {
+                    "versions": [v.to_dict() for v in vs],
+                    "floor_rms_deg": math.degrees(floor) if floor else None,
+                }
+            )
+        )
+    else:
+        print(format_history(meas, vs, floor))
     return 0
 
 
@@ -284,6 +454,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         default="k_step",
         help="k-step-ahead prediction or free simulation",
     )
+    c.add_argument(
+        "--replicas",
+        type=int,
+        default=DEFAULT_REPLICAS,
+        metavar="N",
+        help=f"simulated replicas for the residual test (default {DEFAULT_REPLICAS}; 0: skip it)",
+    )
+    c.add_argument(
+        "--preset",
+        action="store_true",
+        help="compare the axis preset's parameters as they are (default: estimate them from the log)",
+    )
     c.set_defaults(func=run_compare)
 
     f = sub.add_parser("fit", help="refit every free parameter in physical units")
@@ -296,7 +478,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         default="k_step",
         help="k-step prediction error (default) or linear inverse-dynamics least squares",
     )
+    f.add_argument("--workspace", default=DEFAULT_WORKSPACE, metavar="DIR", help="where versions are kept")
+    f.add_argument("--no-keep", action="store_true", help="do not keep the fit as a version")
     f.set_defaults(func=run_fit)
+
+    h = sub.add_parser("history", help="the versions kept for a log: the error falling, the error budget")
+    h.add_argument("data", metavar="DATA.csv")
+    h.add_argument("--workspace", default=DEFAULT_WORKSPACE, metavar="DIR", help="where versions are kept")
+    h.add_argument(
+        "--replicas", type=int, default=DEFAULT_REPLICAS, metavar="N", help="replicas for the floor (0: none)"
+    )
+    h.add_argument("--json", action="store_true", help="print one JSON object")
+    h.set_defaults(func=run_history)
 
     e = sub.add_parser("emps-convert", help="convert an EMPS .mat file to a CSV log")
     e.add_argument("mat", metavar="MAT", help="DATA_EMPS.mat or DATA_EMPS_PULSES.mat")

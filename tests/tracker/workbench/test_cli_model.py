@@ -92,3 +92,34 @@ def test_bad_options_are_one_line_errors(
     assert main(["model", "compare", str(log_path), "--axis", "pan", *args]) == 2
     err = capsys.readouterr().err
     assert needle in err and err.count("\n") == 1
+
+
+@pytest.fixture(autouse=True)
+def _workspace_in_tmp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`fit` keeps versions in ./.tracker-workspace: keep them out of the checkout."""
+    monkeypatch.chdir(tmp_path)
+
+
+def test_fit_keeps_versions_and_history_shows_the_error_falling(
+    log_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ws = str(tmp_path / "ws")
+    assert main(["model", "fit", str(log_path), "--axis", "pan", "--workspace", ws]) == 0
+    assert "kept as version 1 (base)" in capsys.readouterr().out
+    assert (
+        main(["model", "fit", str(log_path), "--axis", "pan", "--effects", "offset", "--workspace", ws]) == 0
+    )
+    assert "kept as version 2 (+offset)" in capsys.readouterr().out
+    assert main(["model", "history", str(log_path), "--workspace", ws, "--replicas", "0", "--json"]) == 0
+    hist = json.loads(capsys.readouterr().out)
+    assert [v["change"] for v in hist["versions"]] == ["base", "+offset"]
+    assert main(["model", "history", str(log_path), "--workspace", ws, "--replicas", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "error budget" in out and "explained by +offset" in out
+
+
+def test_history_without_versions_is_one_error_line(
+    log_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["model", "history", str(log_path), "--workspace", str(tmp_path / "empty")]) == 2
+    assert "no versions" in capsys.readouterr().err

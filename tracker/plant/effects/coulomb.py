@@ -18,5 +18,9 @@ EFFECT = Effect(
     description="Coulomb friction of constant magnitude opposing motion; sticks at rest.",
     params=(Param("torque", "N·m", 0.052, 0.0, 1e6, "Coulomb friction torque (positive direction)"),),
     signature="a step in the error at every velocity reversal",
+    experiment=(
+        "friction-ID sweep down to slow constant speeds (tracker friction-id): "
+        "the friction torque at zero speed is Fc"
+    ),
     torque_nm=torque_nm,
 )

@@ -19,4 +19,5 @@ EFFECT = Effect(
         ),
     ),
     signature="errors scale with acceleration",
+    experiment="steps or a chirp with large accelerations: J is what separates torque from acceleration",
 )

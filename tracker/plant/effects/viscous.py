@@ -18,5 +18,9 @@ EFFECT = Effect(
     description="Viscous friction proportional to velocity.",
     params=(Param("b", "N·m·s/rad", 8.5e-4, 0.0, 1e6, "viscous friction coefficient"),),
     signature="errors grow with speed",
+    experiment=(
+        "friction-ID sweep at several constant speeds (tracker friction-id): "
+        "the friction torque's slope over speed is b"
+    ),
     torque_nm=torque_nm,
 )

@@ -35,6 +35,8 @@ from numpy.typing import NDArray
 from tracker.errors import ConfigError, DataError
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import STATE_SIZE, advance, pack_params, simulate
+from tracker.workbench.compare.consistency import ResidualVerdict, judge_residual
+from tracker.workbench.compare.floor import DEFAULT_REPLICAS, residual_floor
 from tracker.workbench.compare.regimes import RegimeBreakdown, RegimeError, break_down
 from tracker.workbench.compare.residuals import ResidualAnalysis, analyse_residuals
 from tracker.workbench.fit.torques import residual_torque_nm
@@ -82,6 +84,7 @@ class CompareResult:
     breakdown: RegimeBreakdown
     residuals: ResidualAnalysis
     states: StateEstimate = field(repr=False)
+    verdict: ResidualVerdict | None = None
 
     def to_dict(self, arrays: bool = False) -> dict[str, object]:
         """JSON-ready: ``{"fit_percent", "rms_deg", "regimes": {...}, ...}`` (arrays if asked)."""
@@ -99,6 +102,8 @@ class CompareResult:
         out["time_segments"] = bd["time_segments"]
         out["frequency_bands_percent"] = bd["frequency_bands_percent"]
         out["residual_analysis"] = self.residuals.to_dict(arrays)
+        if self.verdict is not None:
+            out["residual_verdict"] = self.verdict.to_dict(arrays)
         if arrays:
             out.update(
                 t_s=self.t_s.tolist(),
@@ -169,6 +174,7 @@ def compare_model(
     horizon_s: float | None = None,
     mode: CompareMode = "k_step",
     states: StateEstimate | None = None,
+    replicas: int = 0,
 ) -> CompareResult:
     """Set ``model`` against ``meas``.
 
@@ -181,6 +187,9 @@ def compare_model(
     mode : "k_step" (default) or "free" (one simulation from the first estimated state).
     states : precomputed :func:`estimate_states` of ``meas`` (the load side is re-observed for
         ``model``); computed when None.
+    replicas : when > 0 (k-step mode), judge the residual against that many simulated replicas
+        of the run made by ``model`` (:mod:`~tracker.workbench.compare.consistency`): a few
+        seconds more; ``CompareResult.verdict`` says whether a right model would leave it.
 
     Returns
     -------
@@ -206,6 +215,11 @@ def compare_model(
     inc_hat = y_hat[k:] - base[:-k]
     rms = float(np.sqrt(np.mean(resid**2)))
     bd = break_down(resid, est.theta_rad, est.omega_rad_s, est.alpha_rad_s2, meas.t_s, reg_k)
+    max_lag = int(min(max(5, round(max(0.1, 2 * k * dt) / dt)), max(5, meas.n // 4)))
+    verdict = None
+    if replicas > 0 and mode == "k_step":
+        floor = residual_floor(meas, model, est, k, max_lag, replicas=replicas)
+        verdict = judge_residual(resid, est, k, floor)
     return CompareResult(
         fit_percent=fit_percent(y, y_hat),
         fit_percent_increment=fit_percent(inc_y, inc_hat),
@@ -222,11 +236,13 @@ def compare_model(
         breakdown=bd,
         residuals=analyse_residuals(resid, meas.u_v, dt, max_lag_s=max(0.1, 2 * k * dt)),
         states=est,
+        verdict=verdict,
     )
 
 
 __all__ = [
     "DEFAULT_HORIZON_S",
+    "DEFAULT_REPLICAS",
     "CompareMode",
     "CompareResult",
     "Score",

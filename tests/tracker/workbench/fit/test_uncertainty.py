@@ -1,0 +1,34 @@
+"""Each fitted parameter's certainty: flagged when this run does not pin it, with the experiment."""
+
+from __future__ import annotations
+
+from tracker.plant.effects import CATALOGUE
+from tracker.workbench.fit.uncertainty import parameter_certainty
+
+
+def test_flags_a_large_relative_error_and_names_the_experiment() -> None:
+    out = {
+        c.name: c
+        for c in parameter_certainty(
+            {"viscous.b": 1e-3, "inertia.J": 2e-3}, {"viscous.b": 2.5e-4, "inertia.J": 1e-5}
+        )
+    }
+    b, j = out["viscous.b"], out["inertia.J"]
+    assert b.poorly_determined and "25 %" in b.reason
+    assert b.experiment == CATALOGUE["viscous"].experiment and b.experiment
+    assert not j.poorly_determined and abs(j.relative_stderr - 0.005) < 1e-12
+
+
+def test_flags_a_strong_correlation_on_both_sides() -> None:
+    out = parameter_certainty(
+        {"gravity.torque": 0.1, "offset.torque": 0.01},
+        {"gravity.torque": 1e-3, "offset.torque": 1e-4},
+        (("gravity.torque", "offset.torque", -0.97),),
+    )
+    assert all(c.poorly_determined and "correlated with" in c.reason for c in out)
+
+
+def test_every_catalogue_effect_with_fitted_parameters_says_how_to_pin_them() -> None:
+    for name, effect in CATALOGUE.items():
+        if any(p.fit for p in effect.params) and name != "quantization":
+            assert effect.experiment, name

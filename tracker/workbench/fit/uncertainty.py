@@ -1,0 +1,85 @@
+"""How well this run pins each fitted parameter: standard error, a flag, and the experiment that pins it.
+
+A parameter is *poorly determined* when its relative standard error exceeds
+``UNCERTAIN_FRACTION`` (the fit's own threshold, 10 %) or when it is strongly correlated with
+another (|r| ≥ ``CORRELATION_WARNING``) and that costs precision (the fitter's
+``correlated`` pairs). The experiment comes from the parameter's effect in the catalogue
+(``Effect.experiment``), so it says what to record to pin that parameter.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from tracker.plant.effects import CATALOGUE
+from tracker.workbench.fit.fit import UNCERTAIN_FRACTION
+
+
+@dataclass(frozen=True, slots=True)
+class ParameterCertainty:
+    """One fitted parameter: value, standard error, relative error, the flag and why."""
+
+    name: str
+    value: float
+    stderr: float
+    poorly_determined: bool
+    reason: str
+    experiment: str | None
+
+    @property
+    def relative_stderr(self) -> float:
+        return abs(self.stderr / self.value) if self.value != 0 else math.inf
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "name": self.name,
+            "value": self.value,
+            "stderr": self.stderr,
+            "relative_stderr": self.relative_stderr,
+            "poorly_determined": self.poorly_determined,
+            "reason": self.reason,
+            "experiment": self.experiment,
+        }
+
+
+def parameter_certainty(
+    params: Mapping[str, float],
+    stderr: Mapping[str, float],
+    correlated: tuple[tuple[str, str, float], ...] = (),
+) -> list[ParameterCertainty]:
+    """Every parameter with a standard error, flagged when this run does not pin it."""
+    partners: dict[str, list[str]] = {}
+    for a, b, c in correlated:
+        partners.setdefault(a, []).append(f"{b} (r = {c:+.2f})")
+        partners.setdefault(b, []).append(f"{a} (r = {c:+.2f})")
+    out = []
+    for name, se in stderr.items():
+        value = float(params.get(name, math.nan))
+        se = float(se)
+        reasons = []
+        rel = abs(se / value) if value else math.inf
+        if not math.isfinite(se) or rel > UNCERTAIN_FRACTION:
+            reasons.append(
+                f"standard error {100 * rel:.0f} % of the value (above {100 * UNCERTAIN_FRACTION:.0f} %)"
+                if math.isfinite(rel)
+                else "no finite standard error"
+            )
+        if name in partners:
+            reasons.append("correlated with " + ", ".join(partners[name]))
+        effect = CATALOGUE.get(name.split(".")[0])
+        out.append(
+            ParameterCertainty(
+                name,
+                value,
+                se,
+                bool(reasons),
+                "; ".join(reasons),
+                effect.experiment if effect is not None else None,
+            )
+        )
+    return out
+
+
+__all__ = ["ParameterCertainty", "parameter_certainty"]
