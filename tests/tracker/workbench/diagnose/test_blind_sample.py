@@ -90,3 +90,22 @@ def test_a_few_percent_stribeck_dip_on_a_clean_log_is_small_not_a_verdict() -> N
     stiction = d.candidate("stiction")
     assert stiction.finding == "significant but small"
     assert any("stiction is detectable but small" in n for n in d.notes)
+
+
+def test_a_lugre_lag_on_top_of_a_one_sample_latency_is_not_a_drive_delay(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Regression: a clean 2 kHz open-loop log (fresh blind set, seed 777) with a one-sample
+    latency and LuGre friction: its pre-sliding elasticity lags the response, and the delay came
+    out 1.69 samples — just over the old 1.5-sample line, so it was the verdict."""
+    import tests.truthgen.matrix as matrix
+
+    monkeypatch.setattr(matrix, "MATRIX_SEED", 777)
+    log, truth = matrix.generate_case("clean-018")
+    assert truth["hidden"] == [] and truth["friction_law"] == "lugre" and truth["latency_samples"] == 1
+    meas = Measurement(log.t, log.u, log.theta, "clean-018")
+    d = diagnose(meas, AxisModel.for_axis(str(truth["axis"]), gain_nm_per_v=float(truth["gain_nm_per_v"])))  # type: ignore[arg-type]
+    assert d.verdict is None
+    delay = d.candidate("delay")
+    assert not delay.significant
+    assert delay.finding == "computational latency"
