@@ -22,6 +22,7 @@ from app.backoff import BadKeyBackoff
 from app.control_lock import ControlLock
 from app.db import Database
 from app.jobs import JobRunner
+from app.policy import PolicyHolder
 from app.settings import Settings
 from app.telemetry import TelemetryHub
 from app.work import WorkPool
@@ -48,6 +49,7 @@ class Service:
         self.bad_keys = BadKeyBackoff(
             settings.bad_key_limit, settings.bad_key_window_s, settings.bad_key_max_block_s
         )
+        self.policy = PolicyHolder(settings.camera_policy, self.db)
         self.engine: Any = None
         self.audio: Any = None
         self.viewer: Any = None
@@ -70,7 +72,9 @@ class Service:
         self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
         self.hub.start(self.engine)
         if s.audio_enabled:
-            self.audio, self.audio_note = rig.attach_audio(self.engine, s)
+            self.audio, self.audio_note = rig.attach_audio(self.engine, s, self.policy.policy)
+            if self.audio is not None:
+                self.policy.listeners.append(self.audio.set_policy)
         if s.viewer_enabled:
             from app.viewer import RigViewer, array_is_head_mounted, load_mics
 

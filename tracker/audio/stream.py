@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 from tracker.audio.head import MAX_SWEEP_RAD, HeadPoses, frame_to_base, map_grids, window_motion
 from tracker.audio.map_tracking import MapTracker
 from tracker.audio.pipeline import FrameEstimate, Pipeline
+from tracker.audio.policy import CameraPolicy
 from tracker.audio.tracking import TalkerTracker, TrackPoint
 from tracker.audio.vad import SpeechDetector, StreamingSpeechDetector
 from tracker.errors import ConfigError, DataError
@@ -131,6 +132,7 @@ class StreamingLocator:
         self._talkers: list[float] = []
         self._lock = threading.Lock()
         self._latest: StreamTarget | None = None
+        self._pending_policy: CameraPolicy | None = None
         self.frames: list[FrameEstimate] = []
         self.keep_frames = False
         self.compute_s = 0.0  # CPU (thread) time spent in push/finish, s
@@ -149,6 +151,33 @@ class StreamingLocator:
         """The most recent target, or None before the first frame."""
         with self._lock:
             return self._latest
+
+    @property
+    def policy(self) -> CameraPolicy:
+        """The camera-operator policy in force (or about to be: see :meth:`set_policy`)."""
+        with self._lock:
+            pending = self._pending_policy
+        if pending is not None:
+            return pending
+        return CameraPolicy.of(self.pipeline.map_tracking if self._map_tracker is not None
+                               else self.pipeline.tracking)
+
+    def set_policy(self, policy: CameraPolicy) -> None:
+        """Use ``policy`` from the next frame on (thread-safe; the tracker keeps its state:
+        its talkers, seats and current shot)."""
+        with self._lock:
+            self._pending_policy = policy
+
+    def _apply_pending_policy(self) -> None:
+        with self._lock:
+            policy, self._pending_policy = self._pending_policy, None
+        if policy is None:
+            return
+        self.pipeline.tracking = policy.apply(self.pipeline.tracking)
+        self.pipeline.map_tracking = policy.apply(self.pipeline.map_tracking)
+        self._tracker.settings = self.pipeline.tracking
+        if self._map_tracker is not None:
+            self._map_tracker.settings = self.pipeline.map_tracking
 
     def push(self, block: FloatArray, head_pan_rad: float | None = None,
              head_tilt_rad: float | None = None) -> list[StreamTarget]:
@@ -204,6 +233,7 @@ class StreamingLocator:
         return out
 
     def _frames(self, ready: list[int], total: int) -> list[StreamTarget]:
+        self._apply_pending_policy()
         fs = self.fs_hz
         starts = np.asarray(ready, dtype=np.int64) * self._n_hop
         speech = self._detector.windows_are_speech(self._speech.features(), starts / fs,
