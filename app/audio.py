@@ -346,6 +346,27 @@ class AudioStream:
         finally:
             live.close()
 
+    def talkers_state(self) -> list[dict[str, Any]]:
+        """The talkers the stream has followed, in degrees, ``last_spoken_ago_s`` counted from
+        the newest frame (None if she never spoke while followed)."""
+        loc = self.locator
+        if loc is None:
+            return []
+        latest = loc.latest
+        now = latest.t_s if latest is not None else 0.0
+        out = []
+        for t in loc.talkers():
+            spoke = math.isfinite(t.last_spoken_s)
+            out.append({
+                "talker_id": t.talker_id,
+                "azimuth_deg": round(math.degrees(t.azimuth_rad), 2),
+                "elevation_deg": None if t.elevation_rad is None else round(math.degrees(t.elevation_rad), 2),
+                "speaking": t.speaking,
+                "last_spoken_ago_s": round(max(0.0, now - t.last_spoken_s), 2) if spoke else None,
+                "speaking_s": round(t.speaking_s, 2),
+            })
+        return out
+
     def capture_state(self) -> dict[str, Any] | None:
         """Live capture's status (device, rates, channel map, counts, fault), or None."""
         status = getattr(self.live, "status", None)

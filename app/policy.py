@@ -53,6 +53,14 @@ def fields_json() -> list[dict[str, Any]]:
     return out
 
 
+def describe_range_public(f: dict[str, Any]) -> str:
+    """A catalogue entry's range in words (API units): "0-30 s", "0-30°", "whole numbers 2-50"."""
+    if f["unit"] == "count":
+        return f"whole numbers {f['min']:g}-{f['max']:g}"
+    unit = "°" if f["unit"] == "deg" else f" {f['unit']}"
+    return f"{f['min']:g}-{f['max']:g}{unit}"
+
+
 def policy_from_json(values: Mapping[str, object], base: CameraPolicy | None = None,
                      where: str = "camera policy") -> CameraPolicy:
     """``base`` (the defaults when None) with ``values`` (API names and units) applied.
@@ -75,7 +83,10 @@ def policy_from_json(values: Mapping[str, object], base: CameraPolicy | None = N
         f = _BY_PUBLIC[name]
         number = value
         if f.unit == "rad" and isinstance(value, int | float) and not isinstance(value, bool):
-            number = math.radians(value)
+            try:
+                number = math.radians(value)
+            except OverflowError:  # an integer past float's range: refused below as it is
+                number = value
         try:
             changes[f.name] = number
             base.replaced({f.name: number}, where)

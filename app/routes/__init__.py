@@ -2,11 +2,24 @@
 
 from __future__ import annotations
 
-from app.routes import gains, jobs, keys, pointing, practice, presets, status, telemetry, tracking, workbench
+from app.routes import (
+    audio,
+    gains,
+    jobs,
+    keys,
+    pointing,
+    practice,
+    presets,
+    status,
+    telemetry,
+    tracking,
+    workbench,
+)
 
 ALL_ROUTERS = (
     status.router,
     tracking.router,
+    audio.router,
     pointing.router,
     presets.router,
     gains.router,

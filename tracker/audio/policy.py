@@ -113,7 +113,10 @@ def check_value(f: PolicyField, value: object, where: str = "camera policy") -> 
     """``value`` if it is a number within ``f``'s range (a whole number for a count), else
     OutOfRange naming the field, the value, the range and the meaning."""
     ok = isinstance(value, int | float) and not isinstance(value, bool)
-    number = float(value) if ok else math.nan  # type: ignore[arg-type]
+    try:
+        number = float(value) if ok else math.nan  # type: ignore[arg-type]
+    except OverflowError:  # an integer past float's range
+        ok, number = False, math.nan
     if f.unit == "count":
         ok = ok and math.isfinite(number) and number == int(number)
     if not ok or not math.isfinite(number) or not f.low <= number <= f.high:
