@@ -82,6 +82,8 @@ class Service:
                 self.viewer = RigViewer(s.viewer_host, s.viewer_port, load_mics(s.array_file),
                                         array_is_head_mounted(s.array_file))
                 self.viewer.start(self.hub, s.viewer_rate_hz)
+                if self.audio is not None and hasattr(self.audio, "talkers_state"):
+                    self.viewer.talkers = self.audio.talkers_state
             except OSError as exc:
                 log.error("3D view not started (%s:%d): %s", s.viewer_host, s.viewer_port, exc)
                 self.viewer = None
