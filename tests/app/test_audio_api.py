@@ -3,8 +3,10 @@ applied to the running stream), the talkers followed, the input devices, live ca
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +22,16 @@ from tracker.errors import ConfigError
 
 DEFAULTS = {"reaction_time_s": 0.2, "min_hold_s": 2.0, "pause_tolerance_s": 1.5, "deadband_deg": 3.0,
             "wide_after_switches": 4, "wide_window_s": 20.0, "wide_release_s": 6.0, "lead_s": 0.3}
+
+
+@contextlib.contextmanager
+def running(tmp: Path, **overrides: Any) -> Iterator[Rig]:
+    """A service on ``tmp`` for the ``with`` block (stopped at its end)."""
+    gen = make_rig(tmp, **overrides)
+    try:
+        yield next(gen)
+    finally:
+        gen.close()
 
 
 @pytest.fixture
@@ -94,11 +106,11 @@ def test_an_unknown_setting_is_a_422_naming_it(fresh: Rig) -> None:
 
 
 def test_the_stored_policy_survives_a_restart(tmp_path: Path) -> None:
-    for rig in make_rig(tmp_path):
+    with running(tmp_path) as rig:
         r = rig.client.put("/api/v1/audio/policy", json={"min_hold_s": 7.0, "deadband_deg": 1.5},
                            headers=rig.h("engineer"))
         assert r.status_code == 200
-    for rig in make_rig(tmp_path, camera_policy={"min_hold_s": 3.0, "lead_s": 0.5}):
+    with running(tmp_path, camera_policy={"min_hold_s": 3.0, "lead_s": 0.5}) as rig:
         got = rig.client.get("/api/v1/audio/policy", headers=rig.h("viewer")).json()
         # stored values win; the config file's others still count
         assert got["values"] == {**DEFAULTS, "min_hold_s": 7.0, "deadband_deg": 1.5, "lead_s": 0.5}
@@ -145,7 +157,7 @@ def two_talkers_wav(path: Path) -> Path:
 
 def test_a_new_policy_reaches_the_running_stream_and_the_talkers_are_listed(tmp_path: Path) -> None:
     wav = two_talkers_wav(tmp_path / "two.wav")
-    for rig in make_rig(tmp_path, audio_enabled=True, audio_input=f"wav:{wav}"):
+    with running(tmp_path, audio_enabled=True, audio_input=f"wav:{wav}") as rig:
         svc = rig.client.app.state.svc  # type: ignore[attr-defined]
         loc = poll(lambda: svc.audio.locator, deadline_s=20)
         assert loc is not None and loc._map_tracker is not None
@@ -196,8 +208,8 @@ def test_live_capture_shows_a_missing_device_as_a_fault_and_recovers(
 
     backend = FakeBackend("USB Array", 6, 48000, present=False)
     monkeypatch.setattr(capture, "sounddevice_backend", lambda: backend)
-    for rig in make_rig(tmp_path, audio_enabled=True, audio_input="live:USB",
-                        audio_channel_map=[5, 2, 0, 3], audio_device_rate_hz=48000):
+    with running(tmp_path, audio_enabled=True, audio_input="live:USB",
+                 audio_channel_map=[5, 2, 0, 3], audio_device_rate_hz=48000) as rig:
         st = rig.client.get("/api/v1/status", headers=rig.h("viewer")).json()
         assert st["audio"].startswith("live capture fault: audio input device 'USB' not found")
         assert "next try in" in st["audio"]
@@ -205,11 +217,11 @@ def test_live_capture_shows_a_missing_device_as_a_fault_and_recovers(
         assert cap["state"] == "fault" and cap["channel_map"] == [5, 2, 0, 3]
         backend.present = True
 
-        def running() -> dict[str, Any] | None:
+        def capture_running() -> dict[str, Any] | None:
             c = rig.client.get("/api/v1/status", headers=rig.h("viewer")).json()["audio_capture"]
             return c if c["state"] == "running" else None
 
-        cap = poll(running, deadline_s=10)
+        cap = poll(capture_running, deadline_s=10)
         assert cap is not None and cap["device"] == "USB Array" and cap["device_rate_hz"] == 48000
         assert cap["device_channels"] == 6 and cap["reconnects"] == 1
         stream = backend.stream
