@@ -6,7 +6,10 @@ acceleration are searched on a grid with it (latency 0 … 1 s by quarter comman
 acceleration log-spaced), the backlash width on a grid of the full simulation. Then
 ``scipy.optimize.least_squares`` refits every free parameter within its bounds.
 
-Steps of the speed table the log never commands (or commands for less than two rows) in a
+The table carries a weak prior (``SMOOTHNESS``): each step's log-speed is pulled toward the
+line through its neighbours', so a step the log holds for a row or two follows them instead of
+its few errors (a 10 % kink costs about half a quantization floor per step; a step held for
+a dozen rows follows its data). Steps of the speed table the log never commands (within the scored windows) in a
 direction are not fitted: they are interpolated from their neighbours (geometric, the shape of
 every table we know) and listed in ``unobserved_steps``. Standard errors are the Gauss–Newton
 covariance times the horizon in rows (the k-step errors of overlapping windows are correlated
@@ -24,14 +27,16 @@ from scipy.optimize import least_squares
 
 from tracker.errors import DataError
 from tracker.workbench.camera.log import CameraLog
-from tracker.workbench.camera.model import CameraModel, param_bounds
+from tracker.workbench.camera.model import BOUNDS, CameraModel, param_bounds
 from tracker.workbench.camera.predict import count_step_rad, fit_percent, horizon_rows
 from tracker.workbench.camera.simulate import simulate_angles
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-MIN_ROWS_PER_STEP = 2
-ACCEL_GRID_RAD_S2 = np.geomspace(0.05, 300.0, 16)
+MIN_ROWS_PER_STEP = 1
+# The table prior's weight, in quantization floors per unit of log-speed off the neighbours' line
+SMOOTHNESS = 5.0
+ACCEL_GRID_RAD_S2 = np.append(np.geomspace(0.05, 300.0, 16), np.inf)
 BACKLASH_GRID_RAD = np.radians([0.0, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0, 1.5, 2.0, 3.0])
 
 
@@ -62,7 +67,12 @@ class CameraFitResult:
 
 
 class _Problem:
-    """The free parameters as a vector, and the k-step errors they give (fast: no model objects)."""
+    """The free parameters as a vector, and the k-step errors they give (fast: no model objects).
+
+    The vector ``z`` is unconstrained for Levenberg–Marquardt: speeds as logarithms (positive),
+    the acceleration limit as its reciprocal (0 = no limit), latency and backlash as themselves;
+    the non-negative ones through |z|, each clipped to its upper bound.
+    """
 
     def __init__(self, log: CameraLog, model: CameraModel, k: int, rows: BoolArray, free: tuple[str, ...]) -> None:
         self.log, self.model, self.k, self.rows, self.free = log, model, k, rows, free
@@ -71,20 +81,62 @@ class _Problem:
         self.sign = np.sign(step).astype(float)
         self.index = np.clip(np.abs(step), 1, model.n_steps) - 1  # table entry of each row
         self.table = model.has("speed_table")
+        self.pos0 = np.array(model.table_positive_rad_s, dtype=float)
+        self.neg0 = np.array(model.table_negative_rad_s, dtype=float)
+        self.slots: list[tuple[str, int]] = []  # (what, table index) per entry of z
+        self.smooth_weight = 0.0
+        self.triples: list[tuple[str, int, int, int]] = []  # consecutive free steps per direction
+        for direction in ("positive", "negative"):
+            ks = sorted(int(n.rsplit(".", 1)[1]) - 1 for n in free if n.startswith(f"speed_table.{direction}."))
+            self.triples += [(direction, a, b, c) for a, b, c in zip(ks, ks[1:], ks[2:], strict=False)]
+        for n in free:
+            if n.startswith("speed_table."):
+                _, direction, k_text = n.split(".")
+                self.slots.append((direction, int(k_text) - 1))
+            else:
+                self.slots.append((n, -1))
 
-    def unpack(self, x: FloatArray) -> dict[str, float]:
-        return dict(zip(self.free, (float(v) for v in x), strict=True))
+    def unpack(self, z: FloatArray) -> dict[str, float]:
+        """Parameter values (model units) of the vector ``z``."""
+        out: dict[str, float] = {}
+        for n, v in zip(self.free, z, strict=True):
+            out[n] = self._value(n, float(v))
+        return out
+
+    @staticmethod
+    def _value(name: str, v: float) -> float:
+        if name.startswith("speed"):
+            lo, hi = param_bounds(name)
+            return min(max(math.exp(min(v, 50.0)), lo), hi)
+        # |z|: non-negative with a gradient on both sides of 0 (a clip would be flat below it)
+        if name == "acceleration.limit":
+            r = min(abs(v), 1.0 / BOUNDS["acceleration.limit"][0])
+            return 1.0 / r if r > 0 else math.inf
+        lo, hi = param_bounds(name)
+        return min(max(abs(v), lo), hi)
+
+    def pack(self, values: dict[str, float]) -> FloatArray:
+        """The vector of parameter values."""
+        z = []
+        for n in self.free:
+            v = values[n]
+            if n.startswith("speed"):
+                z.append(math.log(max(v, 1e-9)))
+            elif n == "acceleration.limit":
+                z.append(1.0 / v if math.isfinite(v) and v > 0 else 0.0)
+            else:
+                z.append(v)
+        return np.array(z, dtype=float)
 
     def parts(self, values: dict[str, float]) -> tuple[FloatArray, float, float, float]:
         m = self.model
         if self.table:
-            pos = np.array(m.table_positive_rad_s, dtype=float)
-            neg = np.array(m.table_negative_rad_s, dtype=float)
-            for name, v in values.items():
-                if name.startswith("speed_table.positive."):
-                    pos[int(name.rsplit(".", 1)[1]) - 1] = v
-                elif name.startswith("speed_table.negative."):
-                    neg[int(name.rsplit(".", 1)[1]) - 1] = v
+            pos, neg = self.pos0.copy(), self.neg0.copy()
+            for n, v in values.items():
+                if n.startswith("speed_table.positive."):
+                    pos[int(n.rsplit(".", 1)[1]) - 1] = v
+                elif n.startswith("speed_table.negative."):
+                    neg[int(n.rsplit(".", 1)[1]) - 1] = v
             speeds = np.where(self.sign > 0, pos[self.index], -neg[self.index]) * (self.sign != 0)
         else:
             speeds = values.get("speed.per_step", m.per_step_rad_s) * self.log.step.astype(float)
@@ -95,11 +147,51 @@ class _Problem:
 
     def errors(self, values: dict[str, float]) -> FloatArray:
         speeds, lat, acc, width = self.parts(values)
+        return self._errors(speeds, lat, acc, width)
+
+    def _errors(self, speeds: FloatArray, lat: float, acc: float, width: float) -> FloatArray:
         phi = simulate_angles(self.log.t_s, speeds, latency_s=lat, accel_rad_s2=acc, backlash_rad=width)
         return self.inc - (phi[self.k:] - phi[:-self.k])[self.rows]
 
-    def residual(self, x: FloatArray) -> FloatArray:
-        return self.errors(self.unpack(x))
+    def residual(self, z: FloatArray) -> FloatArray:
+        """The k-step errors at ``z`` (the hot path: no dictionaries)."""
+        m = self.model
+        pos, neg = self.pos0.copy(), self.neg0.copy()
+        per_step = m.per_step_rad_s
+        lat, acc, width = m.effective_latency_s, m.effective_accel_rad_s2, m.effective_backlash_rad
+        for (what, idx), n, v in zip(self.slots, self.free, z, strict=True):
+            value = self._value(n, float(v))
+            if what == "positive":
+                pos[idx] = value
+            elif what == "negative":
+                neg[idx] = value
+            elif what == "speed.per_step":
+                per_step = value
+            elif what == "latency.seconds":
+                lat = value
+            elif what == "acceleration.limit":
+                acc = value
+            elif what == "backlash.width":
+                width = value
+        if self.table:
+            speeds = np.where(self.sign > 0, pos[self.index], -neg[self.index]) * (self.sign != 0)
+        else:
+            speeds = per_step * self.log.step.astype(float)
+        err = self._errors(speeds, lat, acc, width)
+        if self.triples and self.smooth_weight > 0:
+            return np.concatenate((err, self.smoothness(pos, neg)))
+        return err
+
+    def smoothness(self, pos: FloatArray, neg: FloatArray) -> FloatArray:
+        """The table's prior: a weak pull of each log-speed toward the line through its free
+        neighbours (a step seen in a row or two follows them; one seen often follows its data)."""
+        out = np.empty(len(self.triples))
+        for i, (direction, a, b, c) in enumerate(self.triples):
+            t = pos if direction == "positive" else neg
+            la, lb, lc = math.log(t[a]), math.log(t[b]), math.log(t[c])
+            w = (b - a) / (c - a)
+            out[i] = self.smooth_weight * (lb - (la + w * (lc - la)))
+        return out
 
 
 def observed_steps(log: CameraLog, rows: BoolArray | None, k: int, n_steps: int) -> dict[str, set[int]]:
@@ -110,10 +202,10 @@ def observed_steps(log: CameraLog, rows: BoolArray | None, k: int, n_steps: int)
     else:
         scored = np.zeros(log.n, dtype=bool)
         scored[k:] = rows
-        # rows j whose command acts inside some scored window (i-k, i]
-        c = np.concatenate(([0], np.cumsum(scored.astype(np.int64))))
+        # rows j whose command is held inside some scored window: rows i in j+1..j+k
+        c = np.concatenate(([0], np.cumsum(scored.astype(np.int64))))  # c[i] = scored rows before i
         j = np.arange(log.n)
-        near = (c[np.minimum(j + k, log.n)] - c[j]) > 0
+        near = (c[np.minimum(j + k + 1, log.n)] - c[np.minimum(j + 1, log.n)]) > 0
     out: dict[str, set[int]] = {}
     for name, sel in (("positive", log.step > 0), ("negative", log.step < 0)):
         steps, counts = np.unique(np.abs(log.step[sel & near]), return_counts=True)
@@ -148,9 +240,15 @@ def _linear_speeds(p: _Problem, names: list[str], latency_s: float) -> tuple[Flo
     ata = np.einsum("ij,ik->jk", a, a)
     atb = np.einsum("ij,i->j", a, fixed)
     sol = np.linalg.solve(ata + 1e-12 * np.trace(ata) * np.eye(ata.shape[0]), atb)
+    cost = float(np.sum((fixed - a @ sol) ** 2))
+    # a speed the linear problem makes non-positive (the effects it ignores distort it) starts
+    # on the map of the others instead: the fit works on log-speeds and cannot leave zero
+    steps = np.array([1.0 if n == "speed.per_step" else float(n.rsplit(".", 1)[1]) for n in names])
+    good = sol > 0
+    per_step = float(np.median(sol[good] / steps[good])) if good.any() else math.radians(1.0)
+    sol = np.where(good & (sol > 0.2 * per_step * steps), sol, per_step * steps)
     lo, hi = param_bounds(names[0])
-    sol = np.clip(sol, lo, hi)
-    return sol, float(np.sum((fixed - a @ sol) ** 2))
+    return np.clip(sol, lo, hi), cost
 
 
 def _interpolated_table(table: FloatArray, known: set[int]) -> FloatArray:
@@ -219,7 +317,8 @@ def _start(p: _Problem, names: tuple[str, ...]) -> dict[str, float]:
     values = best[1]
     if "backlash.width" in names:
         costs = [float(np.sum(p.errors({**values, "backlash.width": float(w)}) ** 2)) for w in BACKLASH_GRID_RAD]
-        values["backlash.width"] = float(BACKLASH_GRID_RAD[int(np.argmin(costs))])
+        # not exactly 0: the play's cost is flat in width until the width matters
+        values["backlash.width"] = max(float(BACKLASH_GRID_RAD[int(np.argmin(costs))]), BACKLASH_GRID_RAD[1])
     out = {n: values.get(n, m.params().get(n, 0.0)) for n in names}
     for n in names:
         lo, hi = param_bounds(n)
@@ -248,23 +347,30 @@ def fit_camera(
     obs = observed_steps(log, mask, k, model.n_steps)
     names = free_parameters(model, obs, free)
     p = _Problem(log, model, k, mask, names)
+    q = count_step_rad(log)
+    p.smooth_weight = SMOOTHNESS * max(q / math.sqrt(6.0), 1e-4)
     first = _start(p, names) if start and names else model.params()
-    x0 = np.array([first[n] for n in names])
     stderr: dict[str, float] = {}
     if names:
-        lo = np.array([param_bounds(n)[0] for n in names])
-        hi = np.array([param_bounds(n)[1] for n in names])
-        x0 = np.clip(x0, lo, hi)
-        scale = np.maximum(np.abs(x0), np.array([_scale_floor(n, log) for n in names]))
-        sol = least_squares(p.residual, x0, bounds=(lo, hi), x_scale=scale, diff_step=1e-4, tr_solver="lsmr",
-                            xtol=1e-10, ftol=1e-10, max_nfev=60 * (len(names) + 1))
-        x = sol.x
+        z0 = p.pack(first)
+        # Levenberg–Marquardt (MINPACK: no threaded BLAS, a few dozen iterations); bounds by
+        # the transforms of _Problem
+        sol = least_squares(p.residual, z0, method="lm", diff_step=1e-6, xtol=1e-12, ftol=1e-12,
+                            max_nfev=40 * (len(names) + 1))
+        z = sol.x
         dof = max(1, int(mask.sum()) - len(names))
         s2 = float(np.sum(sol.fun**2)) / dof
-        jtj = sol.jac.T @ sol.jac
-        cov = np.linalg.pinv(jtj) * s2 * k
-        stderr = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
-        model = model.with_params(p.unpack(x))
+        cov = np.linalg.pinv(np.einsum("ij,ik->jk", sol.jac, sol.jac)) * s2 * k
+        fitted = p.unpack(z)
+        for i, n in enumerate(names):  # back to the model's units: dv = dz * dv/dz
+            sz = math.sqrt(max(cov[i, i], 0.0))
+            if n.startswith("speed"):
+                stderr[n] = fitted[n] * sz
+            elif n == "acceleration.limit":
+                stderr[n] = sz * fitted[n] ** 2 if math.isfinite(fitted[n]) else math.inf
+            else:
+                stderr[n] = sz
+        model = model.with_params(fitted)
     model = _fill_tables(model, obs)
     err = _Problem(log, model, k, mask, ()).residual(np.zeros(0))
     inc = p.inc
@@ -284,7 +390,7 @@ def _scale_floor(name: str, log: CameraLog) -> float:
     if name == "latency.seconds":
         return log.period_s
     if name == "acceleration.limit":
-        return 1.0
+        return 1e-3  # s²/rad, of the reciprocal
     if name == "backlash.width":
         return math.radians(0.1)
     return 1e-3

@@ -62,7 +62,7 @@ BOUNDS = {
     "speed.per_step": (1e-6, 20.0),
     "speed_table": (1e-6, 50.0),
     "latency.seconds": (0.0, 1.0),
-    "acceleration.limit": (0.01, 1000.0),
+    "acceleration.limit": (0.01, math.inf),  # inf: reaches any speed at once
     "backlash.width": (0.0, 0.2),
     "quantization.step": (0.0, 0.1),
 }
@@ -217,7 +217,7 @@ class CameraModel:
                 raise ConfigError(f"{name!r} is not a camera model parameter; they are "
                                   f"{', '.join([*simple, 'speed_table.positive.K', 'speed_table.negative.K'])}")
             lo, hi = BOUNDS[name]
-            if not (math.isfinite(v) and lo <= v <= hi):
+            if math.isnan(v) or not lo <= v <= hi or (math.isinf(v) and name != "acceleration.limit"):
                 raise ConfigError(f"{name} = {v!r} {UNITS[name]} is outside [{lo:g}, {hi:g}]")
             fields[simple[name]] = v
         return replace(self, table_positive_rad_s=tuple(pos), table_negative_rad_s=tuple(neg),

@@ -122,10 +122,12 @@ def count_step_rad(log: CameraLog) -> float:
     d = d[d > 1e-12]
     if d.size < 10:
         return 0.0
-    q = float(np.min(d))
-    ratio = d / q
-    if np.median(np.abs(ratio - np.round(ratio))) < 0.02 and np.max(np.abs(ratio - np.round(ratio))) < 0.2:
-        return q
+    smallest = float(np.min(d))
+    for parts in range(1, 11):  # the smallest change may be several counts (a fast log)
+        q = smallest / parts
+        off = np.abs(d / q - np.round(d / q))
+        if np.median(off) < 0.02 and np.max(off) < 0.2:
+            return q
     return 0.0
 
 
