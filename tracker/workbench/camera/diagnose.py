@@ -106,13 +106,16 @@ class _Judged:
 
 
 def _judge(log: CameraLog, model: CameraModel, k: int, half_a: NDArray[np.bool_],
-           block: NDArray[np.int64], horizon_s: float | None) -> _Judged:
-    """Fit on each half, score on the other: held-out RMS per half and SSE per block."""
+           block: NDArray[np.int64], horizon_s: float | None, warm: bool = False) -> _Judged:
+    """Fit on each half, score on the other: held-out RMS per half and SSE per block.
+
+    ``warm``: ``model`` already holds values fitted on the whole log; each half starts from
+    them (the searches of the starting values struggle with many effects on half a log)."""
     rms: list[float] = []
     sse: dict[int, float] = {}
     fits = []
     for train in (half_a, ~half_a):
-        res = fit_camera(log, model, horizon_s=horizon_s, rows=train)
+        res = fit_camera(log, model, horizon_s=horizon_s, rows=train, start=not warm)
         fits.append(res)
         err = increment_errors(log, res.model, k)
         test = ~train
@@ -191,6 +194,16 @@ def _candidate(log: CameraLog, model: CameraModel, effect: str, needed: tuple[tu
     )
 
 
+def _without(model: CameraModel, effect: str) -> CameraModel:
+    """``model`` without ``effect``; without its table, the linear map that fits the table best."""
+    if effect == "speed_table":
+        steps = np.arange(1, model.n_steps + 1, dtype=float)
+        both = 0.5 * (model.table_rad_s(1) + model.table_rad_s(-1))
+        per_step = float(np.sum(both * steps) / np.sum(steps**2))
+        return model.without_effect(effect).with_params({"speed.per_step": per_step})
+    return model.without_effect(effect)
+
+
 def _prefix(effect: str) -> str:
     return {"latency": "latency.", "speed_table": "speed_table.", "acceleration": "acceleration.",
             "backlash": "backlash."}.get(effect, effect + ".")
@@ -214,7 +227,8 @@ def diagnose_camera(log: CameraLog, model: CameraModel, horizon_s: float | None 
     full_model = model
     for e in missing:
         full_model = full_model.with_effect(e)
-    full = _judge(log, full_model, k, half_a, block, horizon_s) if len(missing) > 1 else None
+    full_fit = fit_camera(log, full_model, horizon_s=horizon_s).model if len(missing) > 1 else full_model
+    full = _judge(log, full_fit, k, half_a, block, horizon_s, warm=True) if len(missing) > 1 else None
     if full is not None and any(f > FAILED_FIT * b for f, b in zip(full.half_rms, base.half_rms, strict=True)):
         # the full model nests the current one: much worse on held-out data (more than a free
         # table's overfitting) means its fit failed (many effects at once on half a log), so it
@@ -228,7 +242,7 @@ def diagnose_camera(log: CameraLog, model: CameraModel, horizon_s: float | None 
         if full is None:
             needed = alone
         else:
-            without = _judge(log, full_model.without_effect(effect), k, half_a, block, horizon_s)
+            without = _judge(log, _without(full_fit, effect), k, half_a, block, horizon_s, warm=True)
             needed = _gains(without, full)
         c = _candidate(log, model, effect, needed, alone, horizon_s, current.fit_percent_increment)
         if at_floor and c.significant:
