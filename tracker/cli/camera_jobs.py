@@ -29,16 +29,29 @@ def register(subparsers: Any) -> None:
 
     p = subparsers.add_parser("camera", help=command_help("camera"))
     sub = p.add_subparsers(dest="camera_command", metavar="JOB", required=True)
-    s = sub.add_parser("speed-id", help="measure the speed table per direction and set it against the profile's",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("--driver", default=None, metavar="URL", help="visca+udp://HOST:PORT or visca+tcp://... "
-                   "(default: the profile's twin, simulated)")
+    s = sub.add_parser(
+        "speed-id",
+        help="measure the speed table per direction and set it against the profile's",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    s.add_argument(
+        "--driver",
+        default=None,
+        metavar="URL",
+        help="visca+udp://HOST:PORT or visca+tcp://... (default: the profile's twin, simulated)",
+    )
     s.add_argument("--profile", default=DEFAULT_PROFILE, choices=profile_names(), help="camera profile")
     s.add_argument("--axis", default="pan", choices=("pan", "tilt"))
-    s.add_argument("--steps", default=None, help="speed steps to measure, comma-separated (default: --count "
-                   "spread over the table)")
+    s.add_argument(
+        "--steps",
+        default=None,
+        help="speed steps to measure, comma-separated (default: --count spread over the table)",
+    )
     s.add_argument("--count", type=int, default=8, help="how many steps to spread over the table (default 8)")
-    s.add_argument("--rate-hz", type=float, default=25.0, help="command/inquiry rate with --driver (default 25)")
+    s.add_argument(
+        "--rate-hz", type=float, default=25.0, help="command/inquiry rate with --driver (default 25)"
+    )
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=run_speed_id)
 
@@ -67,10 +80,14 @@ async def _on_camera(args: argparse.Namespace) -> Any:  # noqa: ANN401 - a Speed
         end = time.monotonic() + 5.0
         while not cam.ready:
             if time.monotonic() > end:
-                raise DriverFault(f"camera {args.driver} did not answer within 5 s ({cam.describe()['last_error']})")
+                raise DriverFault(
+                    f"camera {args.driver} did not answer within 5 s ({cam.describe()['last_error']})"
+                )
             await asyncio.sleep(0.02)
         cam.enable()
-        return await identify_speed_table(ViscaRig(cam), args.axis, steps=_steps(args.steps), count=args.count)
+        return await identify_speed_table(
+            ViscaRig(cam), args.axis, steps=_steps(args.steps), count=args.count
+        )
     finally:
         cam.disable()
         await cam.close()
@@ -78,13 +95,18 @@ async def _on_camera(args: argparse.Namespace) -> Any:  # noqa: ANN401 - a Speed
 
 def format_speed_id(res: Any) -> str:  # noqa: ANN401 - a SpeedIdResult
     """The measured table as a person reads it (degrees)."""
-    lines = [f"speed-table identification, {res.axis} axis, against the {res.profile} profile "
-             f"({len(res.runs)} runs, {res.elapsed_s:.1f} s)", "",
-             f"{'step':>4} {'dir':>3} {'measured °/s':>13} {'± °/s':>7} {'profile °/s':>12} {'departure':>10}"]
+    lines = [
+        f"speed-table identification, {res.axis} axis, against the {res.profile} profile "
+        f"({len(res.runs)} runs, {res.elapsed_s:.1f} s)",
+        "",
+        f"{'step':>4} {'dir':>3} {'measured °/s':>13} {'± °/s':>7} {'profile °/s':>12} {'departure':>10}",
+    ]
     for r in res.runs:
-        lines.append(f"{r.step:4d} {'+' if r.direction > 0 else '-':>3} {math.degrees(r.rate_rad_s):13.3f} "
-                     f"{math.degrees(r.stderr_rad_s):7.3f} {math.degrees(r.profile_rad_s):12.3f} "
-                     f"{r.deviation_percent:+9.1f} %")
+        lines.append(
+            f"{r.step:4d} {'+' if r.direction > 0 else '-':>3} {math.degrees(r.rate_rad_s):13.3f} "
+            f"{math.degrees(r.stderr_rad_s):7.3f} {math.degrees(r.profile_rad_s):12.3f} "
+            f"{r.deviation_percent:+9.1f} %"
+        )
     return "\n".join([*lines, "", *res.notes])
 
 

@@ -55,26 +55,42 @@ def run(args: argparse.Namespace, command: str) -> int:
 
     log = read_camera_log(args.data)
     model = _model(args, log.max_step)
-    head = (f"{log.source}: camera log, {log.n} rows at {1 / log.period_s:.1f} Hz, steps up to {log.max_step}; "
-            f"model: base{''.join(' + ' + e for e in model.effects)}")
+    head = (
+        f"{log.source}: camera log, {log.n} rows at {1 / log.period_s:.1f} Hz, steps up to {log.max_step}; "
+        f"model: base{''.join(' + ' + e for e in model.effects)}"
+    )
     if command == "compare":
         res: Any = compare_camera(log, model, args.horizon)
-        lines = [head, f"k-step fit {res.fit_percent_increment:.2f} % ({res.horizon_rows} rows = "
-                 f"{res.horizon_s:.2f} s ahead), RMS {res.rms_deg:.4f}° (quantization floor "
-                 f"{res.quantization_floor_deg:.4f}°)", "error by regime:"]
-        lines += [f"  {k:<13} {r.fraction_of_time * 100:5.1f} % of time  {r.share_of_error_percent:5.1f} % of error  "
-                  f"concentration {r.concentration:4.1f}" for k, r in res.regimes.items()]
+        lines = [
+            head,
+            f"k-step fit {res.fit_percent_increment:.2f} % ({res.horizon_rows} rows = "
+            f"{res.horizon_s:.2f} s ahead), RMS {res.rms_deg:.4f}° (quantization floor "
+            f"{res.quantization_floor_deg:.4f}°)",
+            "error by regime:",
+        ]
+        lines += [
+            f"  {k:<13} {r.fraction_of_time * 100:5.1f} % of time  {r.share_of_error_percent:5.1f} % of error  "
+            f"concentration {r.concentration:4.1f}"
+            for k, r in res.regimes.items()
+        ]
     elif command == "fit":
         free = tuple(f.strip() for f in (getattr(args, "free", None) or "").split(",") if f.strip()) or None
         res = fit_camera(log, model, horizon_s=args.horizon, free=free)
         lines = [head, f"k-step fit {res.fit_percent_increment:.2f} %, RMS {res.rms_deg:.4f}°", "parameters:"]
-        lines += [f"  {n:<28} {v:.6g} ± {res.stderr.get(n, float('nan')):.2g}" for n, v in res.model.params().items()]
+        lines += [
+            f"  {n:<28} {v:.6g} ± {res.stderr.get(n, float('nan')):.2g}"
+            for n, v in res.model.params().items()
+        ]
         if any(res.unobserved_steps.values()):
             lines.append(f"steps not in the log (interpolated): {res.unobserved_steps}")
     else:
         res = diagnose_camera(log, model, args.horizon)
-        lines = [head, f"k-step fit {res.fit_percent:.2f} %, RMS {res.rms_deg:.4f}°",
-                 f"verdict: {res.verdict or 'none (nothing significant is missing)'}", ""]
+        lines = [
+            head,
+            f"k-step fit {res.fit_percent:.2f} %, RMS {res.rms_deg:.4f}°",
+            f"verdict: {res.verdict or 'none (nothing significant is missing)'}",
+            "",
+        ]
         for i, c in enumerate(res.candidates, 1):
             lines.append(f"{i}. {c.effect}{'  [significant]' if c.significant else ''}")
             lines.append(f"   {c.evidence}")

@@ -25,9 +25,9 @@ from tracker.cli import camera_model
 from tracker.errors import ConfigError, TrackerError
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
+from tracker.workbench.camera.log import is_camera_log_file
 from tracker.workbench.compare.compare import CompareResult, compare_model
 from tracker.workbench.fit.fit import FitResult, fit_model
-from tracker.workbench.camera.log import is_camera_log_file
 from tracker.workbench.measurements.data import Measurement, read_log
 
 

@@ -12,7 +12,8 @@ other half, and vice versa:
 * **alone**: the current model with E against the current model (the gain of the next step).
 
 E is **significant** when it is needed (or, when the full model fits a half clearly worse
-than the current one — it nests it, so that is a failed fit — when it helps alone): the held-out error without it is at least ``MIN_GAIN``
+than the current one — it nests it, so that is a failed fit — when it helps alone):
+the held-out error without it is at least ``MIN_GAIN``
 higher in both halves *and* block by block (the log-ratio of each block's error, a one-sided
 t-test over blocks, t < ``T_CRIT``), and the current model's error is above the quantization
 floor (a model at the floor has nothing left to explain). Look-alikes (latency and an
@@ -65,11 +66,16 @@ class CameraCandidate:
 
     def to_dict(self) -> dict[str, object]:
         return {
-            "effect": self.effect, "significant": self.significant,
+            "effect": self.effect,
+            "significant": self.significant,
             "heldout_gain_percent": self.heldout_gain_percent,
-            "half_gains_percent": list(self.half_gains_percent), "block_t": self.block_t,
-            "fit_percent": self.fit_percent, "params": self.params, "stderr": self.stderr,
-            "evidence": self.evidence, "confused_with": list(self.confused_with),
+            "half_gains_percent": list(self.half_gains_percent),
+            "block_t": self.block_t,
+            "fit_percent": self.fit_percent,
+            "params": self.params,
+            "stderr": self.stderr,
+            "evidence": self.evidence,
+            "confused_with": list(self.confused_with),
             "experiment": self.experiment,
         }
 
@@ -86,9 +92,15 @@ class CameraDiagnosis:
     model: CameraModel = field(repr=False)
 
     def to_dict(self) -> dict[str, object]:
-        return {"kind": "camera", "fit_percent": self.fit_percent, "rms_deg": self.rms_deg,
-                "verdict": self.verdict, "candidates": [c.to_dict() for c in self.candidates],
-                "notes": list(self.notes), "model": self.model.to_dict()}
+        return {
+            "kind": "camera",
+            "fit_percent": self.fit_percent,
+            "rms_deg": self.rms_deg,
+            "verdict": self.verdict,
+            "candidates": [c.to_dict() for c in self.candidates],
+            "notes": list(self.notes),
+            "model": self.model.to_dict(),
+        }
 
 
 def heldout_halves(log: CameraLog, k: int) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
@@ -105,8 +117,15 @@ class _Judged:
     fits: tuple[CameraFitResult, CameraFitResult]
 
 
-def _judge(log: CameraLog, model: CameraModel, k: int, half_a: NDArray[np.bool_],
-           block: NDArray[np.int64], horizon_s: float | None, warm: bool = False) -> _Judged:
+def _judge(
+    log: CameraLog,
+    model: CameraModel,
+    k: int,
+    half_a: NDArray[np.bool_],
+    block: NDArray[np.int64],
+    horizon_s: float | None,
+    warm: bool = False,
+) -> _Judged:
     """Fit on each half, score on the other: held-out RMS per half and SSE per block.
 
     ``warm``: ``model`` already holds values fitted on the whole log; each half starts from
@@ -128,7 +147,9 @@ def _judge(log: CameraLog, model: CameraModel, k: int, half_a: NDArray[np.bool_]
 
 def _block_t(base: _Judged, cand: _Judged) -> float:
     """One-sided t statistic of the blocks' log error ratio (negative: the candidate is better)."""
-    r = np.array([math.log((cand.block_sse[b] + 1e-30) / (base.block_sse[b] + 1e-30)) for b in base.block_sse])
+    r = np.array(
+        [math.log((cand.block_sse[b] + 1e-30) / (base.block_sse[b] + 1e-30)) for b in base.block_sse]
+    )
     if r.size < 3:
         return 0.0
     sd = float(np.std(r, ddof=1))
@@ -139,13 +160,17 @@ def _evidence(effect: str, model: CameraModel, log: CameraLog) -> str:
     """The effect's fitted values in words."""
     if effect == "latency":
         lat = model.latency_s
-        return (f"commands act {1e3 * lat:.0f} ms after they are logged "
-                f"({lat / log.period_s:.1f} command periods of {1e3 * log.period_s:.1f} ms)")
+        return (
+            f"commands act {1e3 * lat:.0f} ms after they are logged "
+            f"({lat / log.period_s:.1f} command periods of {1e3 * log.period_s:.1f} ms)"
+        )
     if effect == "acceleration":
         a = model.accel_rad_s2
         vmax = float(np.max(np.abs(model.speeds_rad_s(log.step))))
-        return (f"the speed follows commands at {math.degrees(a):.0f}°/s² "
-                f"(the fastest speed used, {math.degrees(vmax):.1f}°/s, takes {vmax / a:.2f} s to reach)")
+        return (
+            f"the speed follows commands at {math.degrees(a):.0f}°/s² "
+            f"(the fastest speed used, {math.degrees(vmax):.1f}°/s, takes {vmax / a:.2f} s to reach)"
+        )
     if effect == "backlash":
         return f"the angle waits for {math.degrees(model.backlash_rad):.2f}° of play after each reversal"
     if effect == "speed_table":
@@ -162,8 +187,10 @@ def _table_words(model: CameraModel, log: CameraLog) -> str:
     line = float(np.sum(both[steps - 1] * steps) / np.sum(steps**2))  # best linear map through 0
     dev = float(np.max(np.abs(both[steps - 1] / (line * steps) - 1.0)))
     asym = float(np.median(neg[steps - 1] / pos[steps - 1]) - 1.0)
-    words = (f"step {hi} runs {both[hi - 1] / both[lo - 1]:.1f}× as fast as step {lo} (a linear map: "
-             f"{hi / lo:.1f}×); the table departs from the best linear map by up to {100 * dev:.0f} %")
+    words = (
+        f"step {hi} runs {both[hi - 1] / both[lo - 1]:.1f}× as fast as step {lo} (a linear map: "
+        f"{hi / lo:.1f}×); the table departs from the best linear map by up to {100 * dev:.0f} %"
+    )
     if abs(asym) >= 0.02:
         words += f"; the negative direction is {100 * abs(asym):.0f} % {'faster' if asym > 0 else 'slower'}"
     return words
@@ -171,26 +198,42 @@ def _table_words(model: CameraModel, log: CameraLog) -> str:
 
 def _gains(base: _Judged, cand: _Judged) -> tuple[tuple[float, float], float]:
     """Held-out gain (%) of ``cand`` over ``base`` per half, and the blocks' t statistic."""
-    gains = tuple(100.0 * (1.0 - c / b) if b > 0 else 0.0 for c, b in zip(cand.half_rms, base.half_rms, strict=True))
+    gains = tuple(
+        100.0 * (1.0 - c / b) if b > 0 else 0.0 for c, b in zip(cand.half_rms, base.half_rms, strict=True)
+    )
     return (gains[0], gains[1]), _block_t(base, cand)
 
 
-def _candidate(log: CameraLog, model: CameraModel, effect: str, needed: tuple[tuple[float, float], float],
-               alone: tuple[tuple[float, float], float], horizon_s: float | None, base_fit: float) -> CameraCandidate:
+def _candidate(
+    log: CameraLog,
+    model: CameraModel,
+    effect: str,
+    needed: tuple[tuple[float, float], float],
+    alone: tuple[tuple[float, float], float],
+    horizon_s: float | None,
+    base_fit: float,
+) -> CameraCandidate:
     (g_need, t_need), (g_alone, t_alone) = needed, alone
     significant = min(g_need) >= 100 * MIN_GAIN and t_need < T_CRIT
     full = fit_camera(log, model.with_effect(effect), horizon_s=horizon_s)
     own = {n: v for n, v in full.model.params().items() if n.startswith(_prefix(effect))}
     mean_need = float(np.mean(g_need))
     return CameraCandidate(
-        effect=effect, significant=significant, heldout_gain_percent=mean_need,
-        half_gains_percent=g_need, block_t=t_need, fit_percent=full.fit_percent_increment,
-        params=own, stderr={n: v for n, v in full.stderr.items() if n in own},
+        effect=effect,
+        significant=significant,
+        heldout_gain_percent=mean_need,
+        half_gains_percent=g_need,
+        block_t=t_need,
+        fit_percent=full.fit_percent_increment,
+        params=own,
+        stderr={n: v for n, v in full.stderr.items() if n in own},
         evidence=f"{_evidence(effect, full.model, log)}; without it the full model's held-out k-step error is "
-                 f"{mean_need:+.0f} % higher than with it (halves {g_need[0]:+.0f} / {g_need[1]:+.0f} %, blocks "
-                 f"t = {-t_need:.1f}); added alone: {-float(np.mean(g_alone)):+.0f} % (t = {t_alone:.1f}), fit "
-                 f"{base_fit:.2f} → {full.fit_percent_increment:.2f} %",
-        confused_with=LOOK_ALIKES[effect], experiment=EXPERIMENTS[effect], model=full.model,
+        f"{mean_need:+.0f} % higher than with it (halves {g_need[0]:+.0f} / {g_need[1]:+.0f} %, blocks "
+        f"t = {-t_need:.1f}); added alone: {-float(np.mean(g_alone)):+.0f} % (t = {t_alone:.1f}), fit "
+        f"{base_fit:.2f} → {full.fit_percent_increment:.2f} %",
+        confused_with=LOOK_ALIKES[effect],
+        experiment=EXPERIMENTS[effect],
+        model=full.model,
     )
 
 
@@ -205,8 +248,12 @@ def _without(model: CameraModel, effect: str) -> CameraModel:
 
 
 def _prefix(effect: str) -> str:
-    return {"latency": "latency.", "speed_table": "speed_table.", "acceleration": "acceleration.",
-            "backlash": "backlash."}.get(effect, effect + ".")
+    return {
+        "latency": "latency.",
+        "speed_table": "speed_table.",
+        "acceleration": "acceleration.",
+        "backlash": "backlash.",
+    }.get(effect, effect + ".")
 
 
 def diagnose_camera(log: CameraLog, model: CameraModel, horizon_s: float | None = None) -> CameraDiagnosis:
@@ -229,12 +276,16 @@ def diagnose_camera(log: CameraLog, model: CameraModel, horizon_s: float | None 
         full_model = full_model.with_effect(e)
     full_fit = fit_camera(log, full_model, horizon_s=horizon_s).model if len(missing) > 1 else full_model
     full = _judge(log, full_fit, k, half_a, block, horizon_s, warm=True) if len(missing) > 1 else None
-    if full is not None and any(f > FAILED_FIT * b for f, b in zip(full.half_rms, base.half_rms, strict=True)):
+    if full is not None and any(
+        f > FAILED_FIT * b for f, b in zip(full.half_rms, base.half_rms, strict=True)
+    ):
         # the full model nests the current one: much worse on held-out data (more than a free
         # table's overfitting) means its fit failed (many effects at once on half a log), so it
         # cannot be the reference
-        notes.append("the model with every effect did not fit both halves of the log: each effect is "
-                     "judged added alone")
+        notes.append(
+            "the model with every effect did not fit both halves of the log: each effect is "
+            "judged added alone"
+        )
         full = None
     for effect in missing:
         with_it = _judge(log, model.with_effect(effect), k, half_a, block, horizon_s)
@@ -250,33 +301,61 @@ def diagnose_camera(log: CameraLog, model: CameraModel, horizon_s: float | None 
         cands.append(c)
     cands.sort(key=lambda c: (not c.significant, -c.heldout_gain_percent))
     if at_floor:
-        notes.append(f"the k-step error ({cmp.rms_deg:.4f}°) is at the quantization floor "
-                     f"({math.degrees(floor_rad):.4f}° for a count of {math.degrees(q):.4f}°): nothing is missing")
+        notes.append(
+            f"the k-step error ({cmp.rms_deg:.4f}°) is at the quantization floor "
+            f"({math.degrees(floor_rad):.4f}° for a count of {math.degrees(q):.4f}°): nothing is missing"
+        )
     if not model.has("quantization"):
         ratio = cmp.rms_deg / math.degrees(floor_rad) if floor_rad > 0 else math.inf
-        cands.append(CameraCandidate(
-            effect="quantization", significant=False, heldout_gain_percent=0.0, half_gains_percent=(0.0, 0.0),
-            block_t=0.0, fit_percent=current.fit_percent_increment, params={"quantization.step": q}, stderr={},
-            evidence=(f"the angle comes in counts of {math.degrees(q):.4f}°; the k-step error is {ratio:.1f}× its "
-                      "floor (a sensor effect: it changes no prediction)") if q > 0
-            else "the angle shows no counts (continuous, or finer than its noise)",
-            confused_with=(), experiment="", model=current.model.with_effect("quantization")
-            .with_params({"quantization.step": min(q, 0.1)})))
+        cands.append(
+            CameraCandidate(
+                effect="quantization",
+                significant=False,
+                heldout_gain_percent=0.0,
+                half_gains_percent=(0.0, 0.0),
+                block_t=0.0,
+                fit_percent=current.fit_percent_increment,
+                params={"quantization.step": q},
+                stderr={},
+                evidence=(
+                    f"the angle comes in counts of {math.degrees(q):.4f}°; the k-step error is {ratio:.1f}× its "
+                    "floor (a sensor effect: it changes no prediction)"
+                )
+                if q > 0
+                else "the angle shows no counts (continuous, or finer than its noise)",
+                confused_with=(),
+                experiment="",
+                model=current.model.with_effect("quantization").with_params(
+                    {"quantization.step": min(q, 0.1)}
+                ),
+            )
+        )
     sig = [c for c in cands if c.significant]
     verdict = sig[0].effect if sig else None
     if len(sig) > 1:
-        notes.append("also significant: " + ", ".join(c.effect for c in sig[1:])
-                     + f" — add {sig[0].effect} and diagnose again")
+        notes.append(
+            "also significant: "
+            + ", ".join(c.effect for c in sig[1:])
+            + f" — add {sig[0].effect} and diagnose again"
+        )
     for c in sig:
         alike = [o.effect for o in sig if o.effect in c.confused_with]
         if alike and c is sig[0]:
             notes.append(f"{c.effect} and {', '.join(alike)} look alike: {c.experiment}")
     worst = max(cmp.regimes.items(), key=lambda kv: kv[1].concentration)
     if worst[1].concentration > 1.5:
-        notes.append(f"the current model's error concentrates at {worst[0].replace('_', ' ')} windows "
-                     f"({worst[1].concentration:.1f}× their share of time)")
-    return CameraDiagnosis(fit_percent=current.fit_percent_increment, rms_deg=cmp.rms_deg, verdict=verdict,
-                           candidates=tuple(cands), notes=tuple(notes), model=current.model)
+        notes.append(
+            f"the current model's error concentrates at {worst[0].replace('_', ' ')} windows "
+            f"({worst[1].concentration:.1f}× their share of time)"
+        )
+    return CameraDiagnosis(
+        fit_percent=current.fit_percent_increment,
+        rms_deg=cmp.rms_deg,
+        verdict=verdict,
+        candidates=tuple(cands),
+        notes=tuple(notes),
+        model=current.model,
+    )
 
 
 def _replace_significant(c: CameraCandidate, value: bool) -> CameraCandidate:

@@ -9,7 +9,8 @@ acceleration log-spaced), the backlash width on a grid of the full simulation. T
 The table carries a weak prior (``SMOOTHNESS``): each step's log-speed is pulled toward the
 line through its neighbours', so a step the log holds for a row or two follows them instead of
 its few errors (a 10 % kink costs about half a quantization floor per step; a step held for
-a dozen rows follows its data). Steps of the speed table the log never commands (within the scored windows) in a
+a dozen rows follows its data). Steps of the speed table the log never commands (within the
+scored windows) in a
 direction are not fitted: they are interpolated from their neighbours (geometric, the shape of
 every table we know) and listed in ``unobserved_steps``. Standard errors are the Gauss–Newton
 covariance times the horizon in rows (the k-step errors of overlapping windows are correlated
@@ -74,7 +75,9 @@ class _Problem:
     the non-negative ones through |z|, each clipped to its upper bound.
     """
 
-    def __init__(self, log: CameraLog, model: CameraModel, k: int, rows: BoolArray, free: tuple[str, ...]) -> None:
+    def __init__(
+        self, log: CameraLog, model: CameraModel, k: int, rows: BoolArray, free: tuple[str, ...]
+    ) -> None:
         self.log, self.model, self.k, self.rows, self.free = log, model, k, rows, free
         self.inc = (log.theta_rad[k:] - log.theta_rad[:-k])[rows]
         step = log.step
@@ -87,7 +90,9 @@ class _Problem:
         self.smooth_weight = 0.0
         self.triples: list[tuple[str, int, int, int]] = []  # consecutive free steps per direction
         for direction in ("positive", "negative"):
-            ks = sorted(int(n.rsplit(".", 1)[1]) - 1 for n in free if n.startswith(f"speed_table.{direction}."))
+            ks = sorted(
+                int(n.rsplit(".", 1)[1]) - 1 for n in free if n.startswith(f"speed_table.{direction}.")
+            )
             self.triples += [(direction, a, b, c) for a, b, c in zip(ks, ks[1:], ks[2:], strict=False)]
         for n in free:
             if n.startswith("speed_table."):
@@ -151,7 +156,7 @@ class _Problem:
 
     def _errors(self, speeds: FloatArray, lat: float, acc: float, width: float) -> FloatArray:
         phi = simulate_angles(self.log.t_s, speeds, latency_s=lat, accel_rad_s2=acc, backlash_rad=width)
-        return self.inc - (phi[self.k:] - phi[:-self.k])[self.rows]
+        return self.inc - (phi[self.k :] - phi[: -self.k])[self.rows]
 
     def residual(self, z: FloatArray) -> FloatArray:
         """The k-step errors at ``z`` (the hot path: no dictionaries)."""
@@ -209,7 +214,9 @@ def observed_steps(log: CameraLog, rows: BoolArray | None, k: int, n_steps: int)
     out: dict[str, set[int]] = {}
     for name, sel in (("positive", log.step > 0), ("negative", log.step < 0)):
         steps, counts = np.unique(np.abs(log.step[sel & near]), return_counts=True)
-        out[name] = {int(s) for s, c in zip(steps, counts, strict=True) if c >= MIN_ROWS_PER_STEP and s <= n_steps}
+        out[name] = {
+            int(s) for s, c in zip(steps, counts, strict=True) if c >= MIN_ROWS_PER_STEP and s <= n_steps
+        }
     return out
 
 
@@ -225,7 +232,7 @@ def _speed_columns(p: _Problem, names: list[str], latency_s: float) -> FloatArra
             sel = (p.index == int(k_text) - 1) & (p.sign == (1.0 if direction == "positive" else -1.0))
             speeds = np.where(sel, p.sign, 0.0)
         phi = simulate_angles(p.log.t_s, speeds, latency_s=latency_s)
-        cols.append((phi[p.k:] - phi[:-p.k])[p.rows])
+        cols.append((phi[p.k :] - phi[: -p.k])[p.rows])
     return np.column_stack(cols)
 
 
@@ -233,8 +240,14 @@ def _linear_speeds(p: _Problem, names: list[str], latency_s: float) -> tuple[Flo
     if not names:
         return np.zeros(0), float(np.sum(p.errors({"latency.seconds": latency_s}) ** 2))
     a = _speed_columns(p, names, latency_s)
-    fixed = p.errors({"latency.seconds": latency_s, "acceleration.limit": math.inf, "backlash.width": 0.0,
-                      **{n: 0.0 for n in names}})
+    fixed = p.errors(
+        {
+            "latency.seconds": latency_s,
+            "acceleration.limit": math.inf,
+            "backlash.width": 0.0,
+            **{n: 0.0 for n in names},
+        }
+    )
     # normal equations (a few dozen columns): lstsq's SVD costs 100x more here
     # (einsum, not BLAS: threaded BLAS thrashes on these small products on a busy machine)
     ata = np.einsum("ij,ik->jk", a, a)
@@ -275,7 +288,9 @@ def _fill_tables(model: CameraModel, obs: dict[str, set[int]]) -> CameraModel:
     return model.with_params(values)
 
 
-def free_parameters(model: CameraModel, obs: dict[str, set[int]], free: tuple[str, ...] | None) -> tuple[str, ...]:
+def free_parameters(
+    model: CameraModel, obs: dict[str, set[int]], free: tuple[str, ...] | None
+) -> tuple[str, ...]:
     """The parameters to fit: ``free`` if given, else every one but the quantization step and
     the table steps the log does not command."""
     names = []
@@ -291,8 +306,9 @@ def free_parameters(model: CameraModel, obs: dict[str, set[int]], free: tuple[st
         return tuple(names)
     unknown = [f for f in free if f not in model.params()]
     if unknown:
-        raise DataError(f"cannot fit {', '.join(unknown)}: not a parameter of this model "
-                        f"({', '.join(model.params())})")
+        raise DataError(
+            f"cannot fit {', '.join(unknown)}: not a parameter of this model ({', '.join(model.params())})"
+        )
     return tuple(f for f in free if f in names or not f.startswith("speed_table."))
 
 
@@ -301,9 +317,12 @@ def _start(p: _Problem, names: tuple[str, ...]) -> dict[str, float]:
     m = p.model
     speed_names = [n for n in names if n.startswith(("speed.", "speed_table."))]
     period = p.log.period_s
-    lat_grid = (np.arange(0.0, min(1.0, 25 * period) + 1e-9, period / 4) if "latency.seconds" in names
-                else np.array([m.effective_latency_s]))
-    acc_grid = (ACCEL_GRID_RAD_S2 if "acceleration.limit" in names else np.array([m.effective_accel_rad_s2]))
+    lat_grid = (
+        np.arange(0.0, min(1.0, 25 * period) + 1e-9, period / 4)
+        if "latency.seconds" in names
+        else np.array([m.effective_latency_s])
+    )
+    acc_grid = ACCEL_GRID_RAD_S2 if "acceleration.limit" in names else np.array([m.effective_accel_rad_s2])
     lin = [(lat, *_linear_speeds(p, speed_names, float(lat))) for lat in lat_grid]
     best: tuple[float, dict[str, float]] | None = None
     for lat, sol, _ in lin:
@@ -316,7 +335,9 @@ def _start(p: _Problem, names: tuple[str, ...]) -> dict[str, float]:
     assert best is not None
     values = best[1]
     if "backlash.width" in names:
-        costs = [float(np.sum(p.errors({**values, "backlash.width": float(w)}) ** 2)) for w in BACKLASH_GRID_RAD]
+        costs = [
+            float(np.sum(p.errors({**values, "backlash.width": float(w)}) ** 2)) for w in BACKLASH_GRID_RAD
+        ]
         # not exactly 0: the play's cost is flat in width until the width matters
         values["backlash.width"] = max(float(BACKLASH_GRID_RAD[int(np.argmin(costs))]), BACKLASH_GRID_RAD[1])
     out = {n: values.get(n, m.params().get(n, 0.0)) for n in names}
@@ -355,8 +376,15 @@ def fit_camera(
         z0 = p.pack(first)
         # Levenberg–Marquardt (MINPACK: no threaded BLAS, a few dozen iterations); bounds by
         # the transforms of _Problem
-        sol = least_squares(p.residual, z0, method="lm", diff_step=1e-6, xtol=1e-12, ftol=1e-12,
-                            max_nfev=40 * (len(names) + 1))
+        sol = least_squares(
+            p.residual,
+            z0,
+            method="lm",
+            diff_step=1e-6,
+            xtol=1e-12,
+            ftol=1e-12,
+            max_nfev=40 * (len(names) + 1),
+        )
         z = sol.x
         dof = max(1, int(mask.sum()) - len(names))
         s2 = float(np.sum(sol.fun**2)) / dof
@@ -380,8 +408,12 @@ def fit_camera(
         rms_deg=math.degrees(float(np.sqrt(np.mean(err**2)))) if err.size else 0.0,
         stderr=stderr,
         fitted=names,
-        unobserved_steps={d: tuple(s for s in range(1, model.n_steps + 1) if s not in obs[d])
-                          for d in ("positive", "negative")} if model.has("speed_table") else {},
+        unobserved_steps={
+            d: tuple(s for s in range(1, model.n_steps + 1) if s not in obs[d])
+            for d in ("positive", "negative")
+        }
+        if model.has("speed_table")
+        else {},
         horizon_rows=k,
     )
 

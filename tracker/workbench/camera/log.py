@@ -94,7 +94,9 @@ def parse_camera_log(text: str, source: str = "<data>") -> CameraLog:
         raise DataError(f"{source}: empty file, expected a header row with t,speed_cmd,theta") from None
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     if missing:
-        raise DataError(f"{source}: line 1: missing column {', '.join(missing)} (header has: {', '.join(header)})")
+        raise DataError(
+            f"{source}: line 1: missing column {', '.join(missing)} (header has: {', '.join(header)})"
+        )
     idx = [header.index(c) for c in REQUIRED_COLUMNS]
     rows: list[tuple[float, float, float]] = []
     try:
@@ -106,8 +108,10 @@ def parse_camera_log(text: str, source: str = "<data>") -> CameraLog:
             where = f"{source}: line {line_no}"
             t, s, th = (_number(row[i], where, c) for i, c in zip(idx, REQUIRED_COLUMNS, strict=True))
             if s != round(s) or abs(s) > MAX_STEP:
-                raise DataError(f"{where}: speed_cmd is {row[idx[1]].strip()!r}: a speed step is a whole "
-                                f"number in -{MAX_STEP}..{MAX_STEP} (0 = stop)")
+                raise DataError(
+                    f"{where}: speed_cmd is {row[idx[1]].strip()!r}: a speed step is a whole "
+                    f"number in -{MAX_STEP}..{MAX_STEP} (0 = stop)"
+                )
             rows.append((t, s, th))
     except csv.Error as exc:
         raise DataError(f"{source}: line {reader.line_num}: not valid CSV ({exc})") from None
@@ -130,12 +134,16 @@ def validate_camera_log(log: CameraLog) -> CameraLog:
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         k = int(bad[0])
-        raise DataError(f"{src}: line {k + 3}: time does not increase (t = {log.t_s[k + 1]:g} after {log.t_s[k]:g})")
+        raise DataError(
+            f"{src}: line {k + 3}: time does not increase (t = {log.t_s[k + 1]:g} after {log.t_s[k]:g})"
+        )
     med = float(np.median(dt))
     uneven = np.flatnonzero(np.abs(dt - med) > SAMPLING_TOLERANCE * med)
     if uneven.size:
         k = int(uneven[0])
-        raise DataError(f"{src}: line {k + 3}: uneven command period (step {dt[k]:g} s, the log's is {med:g} s)")
+        raise DataError(
+            f"{src}: line {k + 3}: uneven command period (step {dt[k]:g} s, the log's is {med:g} s)"
+        )
     if not np.any(log.step != 0):
         raise DataError(f"{src}: speed_cmd is 0 on every row: the camera was never driven")
     return log

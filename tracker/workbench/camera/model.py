@@ -49,12 +49,12 @@ LOOK_ALIKES = {
 }
 EXPERIMENTS = {
     "latency": "step the speed from rest and time the first count change: a latency delays it by the "
-               "same time at every step; an acceleration limit delays it by less at higher steps",
+    "same time at every step; an acceleration limit delays it by less at higher steps",
     "acceleration": "step from rest to the fastest step and back: the rate ramps at the limit; a pure "
-                    "latency shows a jump after a dead time instead",
+    "latency shows a jump after a dead time instead",
     "speed_table": "run `tracker camera speed-id`: every step in each direction, its steady rate",
     "backlash": "reverse at a slow step: the angle waits for the play; at a fast step it waits for "
-                "less time, a latency waits the same time at every step",
+    "less time, a latency waits the same time at every step",
     "quantization": "",
 }
 # (lower, upper) bounds of the parameters
@@ -67,8 +67,12 @@ BOUNDS = {
     "quantization.step": (0.0, 0.1),
 }
 UNITS = {
-    "speed.per_step": "rad/s", "speed_table": "rad/s", "latency.seconds": "s",
-    "acceleration.limit": "rad/s²", "backlash.width": "rad", "quantization.step": "rad",
+    "speed.per_step": "rad/s",
+    "speed_table": "rad/s",
+    "latency.seconds": "s",
+    "acceleration.limit": "rad/s²",
+    "backlash.width": "rad",
+    "quantization.step": "rad",
 }
 FloatArray = NDArray[np.float64]
 
@@ -105,10 +109,14 @@ class CameraModel:
     def __post_init__(self) -> None:
         unknown = [e for e in self.effects if e not in CAMERA_EFFECTS]
         if unknown:
-            raise ConfigError(f"unknown camera effect {', '.join(unknown)}; camera effects are "
-                              f"{', '.join(CAMERA_EFFECTS)}")
+            raise ConfigError(
+                f"unknown camera effect {', '.join(unknown)}; camera effects are {', '.join(CAMERA_EFFECTS)}"
+            )
         if "speed_table" in self.effects:
-            for name, table in (("positive", self.table_positive_rad_s), ("negative", self.table_negative_rad_s)):
+            for name, table in (
+                ("positive", self.table_positive_rad_s),
+                ("negative", self.table_negative_rad_s),
+            ):
                 if len(table) != self.n_steps:
                     raise ConfigError(f"speed_table.{name} has {len(table)} steps, the model {self.n_steps}")
 
@@ -128,7 +136,9 @@ class CameraModel:
         """The model with ``effect`` added at neutral starting values (the speed table starts
         as the linear map)."""
         if effect not in CAMERA_EFFECTS:
-            raise ConfigError(f"unknown camera effect {effect!r}; camera effects are {', '.join(CAMERA_EFFECTS)}")
+            raise ConfigError(
+                f"unknown camera effect {effect!r}; camera effects are {', '.join(CAMERA_EFFECTS)}"
+            )
         if effect in self.effects:
             return self
         effects = tuple(e for e in CAMERA_EFFECTS if e in self.effects or e == effect)
@@ -157,7 +167,9 @@ class CameraModel:
         """The speed of every step 1..n_steps in ``direction`` (+1/-1), whichever map the model has."""
         if not self.has("speed_table"):
             return self.per_step_rad_s * np.arange(1, self.n_steps + 1, dtype=float)
-        return np.asarray(self.table_positive_rad_s if direction > 0 else self.table_negative_rad_s, dtype=float)
+        return np.asarray(
+            self.table_positive_rad_s if direction > 0 else self.table_negative_rad_s, dtype=float
+        )
 
     # -- the parameters ------------------------------------------------------------------------
     @property
@@ -197,32 +209,48 @@ class CameraModel:
         """The model with some parameters replaced (ConfigError naming an unknown or out-of-bounds one)."""
         pos, neg = list(self.table_positive_rad_s), list(self.table_negative_rad_s)
         fields: dict[str, float] = {}
-        simple = {"speed.per_step": "per_step_rad_s", "latency.seconds": "latency_s",
-                  "acceleration.limit": "accel_rad_s2", "backlash.width": "backlash_rad",
-                  "quantization.step": "quant_rad"}
+        simple = {
+            "speed.per_step": "per_step_rad_s",
+            "latency.seconds": "latency_s",
+            "acceleration.limit": "accel_rad_s2",
+            "backlash.width": "backlash_rad",
+            "quantization.step": "quant_rad",
+        }
         for name, value in values.items():
             v = float(value)
             if name.startswith("speed_table."):
                 _, direction, k_text = (name.split(".") + ["", ""])[:3]
-                if not self.has("speed_table") or direction not in ("positive", "negative") \
-                        or not k_text.isdigit() or not 1 <= int(k_text) <= self.n_steps:
-                    raise ConfigError(f"{name!r} is not a parameter of this camera model (steps 1..{self.n_steps}"
-                                      f"{'' if self.has('speed_table') else ', and it has no speed_table'})")
+                if (
+                    not self.has("speed_table")
+                    or direction not in ("positive", "negative")
+                    or not k_text.isdigit()
+                    or not 1 <= int(k_text) <= self.n_steps
+                ):
+                    raise ConfigError(
+                        f"{name!r} is not a parameter of this camera model (steps 1..{self.n_steps}"
+                        f"{'' if self.has('speed_table') else ', and it has no speed_table'})"
+                    )
                 lo, hi = BOUNDS["speed_table"]
                 if not (math.isfinite(v) and lo <= v <= hi):
                     raise ConfigError(f"{name} = {v!r} rad/s is outside [{lo:g}, {hi:g}]")
                 (pos if direction == "positive" else neg)[int(k_text) - 1] = v
                 continue
             if name not in simple:
-                raise ConfigError(f"{name!r} is not a camera model parameter; they are "
-                                  f"{', '.join([*simple, 'speed_table.positive.K', 'speed_table.negative.K'])}")
+                raise ConfigError(
+                    f"{name!r} is not a camera model parameter; they are "
+                    f"{', '.join([*simple, 'speed_table.positive.K', 'speed_table.negative.K'])}"
+                )
             lo, hi = BOUNDS[name]
             if math.isnan(v) or not lo <= v <= hi or (math.isinf(v) and name != "acceleration.limit"):
                 raise ConfigError(f"{name} = {v!r} {UNITS[name]} is outside [{lo:g}, {hi:g}]")
             fields[simple[name]] = v
-        return replace(self, table_positive_rad_s=tuple(pos), table_negative_rad_s=tuple(neg),
-                       **fields)  # type: ignore[arg-type]
+        return replace(self, table_positive_rad_s=tuple(pos), table_negative_rad_s=tuple(neg), **fields)  # type: ignore[arg-type]
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready: effects, parameters, step count."""
-        return {"kind": "camera", "effects": list(self.effects), "n_steps": self.n_steps, "params": self.params()}
+        return {
+            "kind": "camera",
+            "effects": list(self.effects),
+            "n_steps": self.n_steps,
+            "params": self.params(),
+        }

@@ -107,10 +107,15 @@ class CameraCompareResult:
             "horizon_rows": self.horizon_rows,
             "command_period_s": self.period_s,
             "quantization_floor_deg": self.quantization_floor_deg,
-            "regimes": {k: {"fraction_of_time": r.fraction_of_time,
-                            "share_of_error_percent": r.share_of_error_percent,
-                            "concentration": r.concentration, "rms_deg": r.rms_deg}
-                        for k, r in self.regimes.items()},
+            "regimes": {
+                k: {
+                    "fraction_of_time": r.fraction_of_time,
+                    "share_of_error_percent": r.share_of_error_percent,
+                    "concentration": r.concentration,
+                    "rms_deg": r.rms_deg,
+                }
+                for k, r in self.regimes.items()
+            },
             "model": self.model.to_dict(),
         }
 

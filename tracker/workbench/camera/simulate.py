@@ -23,8 +23,9 @@ FloatArray = NDArray[np.float64]
 
 
 @njit(cache=True)
-def _piece(m: float, v: float, load: float, h: float, target: float, accel: float,
-           half: float) -> tuple[float, float, float]:
+def _piece(
+    m: float, v: float, load: float, h: float, target: float, accel: float, half: float
+) -> tuple[float, float, float]:
     """Advance (drive angle, speed, measured angle) by ``h`` toward ``target`` (one piece)."""
     if h <= 0.0:
         return m, v, load
@@ -82,16 +83,32 @@ def _run(t_s: FloatArray, speeds: FloatArray, latency_s: float, accel: float, wi
     return out
 
 
-def simulate_angles(t_s: FloatArray, speeds_rad_s: FloatArray, *, latency_s: float = 0.0,
-                    accel_rad_s2: float = math.inf, backlash_rad: float = 0.0) -> FloatArray:
+def simulate_angles(
+    t_s: FloatArray,
+    speeds_rad_s: FloatArray,
+    *,
+    latency_s: float = 0.0,
+    accel_rad_s2: float = math.inf,
+    backlash_rad: float = 0.0,
+) -> FloatArray:
     """The measured angle at each row time, relative to the first (rad, shape (n,)).
 
     ``speeds_rad_s[j]`` is the signed speed commanded at ``t_s[j]`` (see the module docstring)."""
-    return _run(np.ascontiguousarray(t_s, dtype=np.float64), np.ascontiguousarray(speeds_rad_s, dtype=np.float64),
-                float(latency_s), float(accel_rad_s2), float(backlash_rad))
+    return _run(
+        np.ascontiguousarray(t_s, dtype=np.float64),
+        np.ascontiguousarray(speeds_rad_s, dtype=np.float64),
+        float(latency_s),
+        float(accel_rad_s2),
+        float(backlash_rad),
+    )
 
 
 def model_angles(log: CameraLog, model: CameraModel) -> FloatArray:
     """The model's angle along ``log`` relative to its first row (rad, shape (n,))."""
-    return simulate_angles(log.t_s, model.speeds_rad_s(log.step), latency_s=model.effective_latency_s,
-                           accel_rad_s2=model.effective_accel_rad_s2, backlash_rad=model.effective_backlash_rad)
+    return simulate_angles(
+        log.t_s,
+        model.speeds_rad_s(log.step),
+        latency_s=model.effective_latency_s,
+        accel_rad_s2=model.effective_accel_rad_s2,
+        backlash_rad=model.effective_backlash_rad,
+    )

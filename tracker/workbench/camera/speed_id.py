@@ -39,9 +39,13 @@ SETTLE_PERIODS = 4
 class SpeedRig(Protocol):
     """What the identification needs from a camera (console frame, rad, s)."""
 
-    profile: CameraProfile
     period_s: float
     limits_rad: dict[str, tuple[float, float]]
+
+    @property
+    def profile(self) -> CameraProfile:
+        """The profile file's figures the result is set against."""
+        ...
 
     async def drive(self, axis: str, step: int, direction: int) -> None:
         """Drive ``axis`` at speed ``step`` toward ``direction`` (+1/-1); 0 stops it."""
@@ -58,20 +62,22 @@ class SpeedRig(Protocol):
 
 @dataclass
 class TwinRig:
-    """The emulator's twin on a simulated clock (5 ms steps): instant. ``profile`` is the file's
+    """The emulator's twin on a simulated clock (5 ms steps): instant. ``file_profile`` is the file's
     profile the result is set against (default: the twin's own)."""
 
     twin: CameraTwin
-    profile: CameraProfile | None = None  # type: ignore[assignment]
+    file_profile: CameraProfile | None = None
     period_s: float = 0.04
     latency_s: float = 0.0
     limits_rad: dict[str, tuple[float, float]] = field(default_factory=dict)
     now_s: float = 0.0
     _pending: list[tuple[float, tuple[int, int, int, int]]] = field(default_factory=list)
 
+    @property
+    def profile(self) -> CameraProfile:
+        return self.file_profile or self.twin.profile
+
     def __post_init__(self) -> None:
-        if self.profile is None:
-            self.profile = self.twin.profile
         if not self.limits_rad:
             self.limits_rad = dict(self.twin.profile.range_rad)
 
@@ -107,9 +113,13 @@ class ViscaRig:
 
     def __init__(self, camera: Any) -> None:  # noqa: ANN401 - a ViscaCamera (no import cycle)
         self.camera = camera
-        self.profile: CameraProfile = camera.profile
+        self._profile: CameraProfile = camera.profile
         self.period_s: float = camera.command_period_s
         self.limits_rad = {a: camera.limits(a) for a in ("pan", "tilt")}
+
+    @property
+    def profile(self) -> CameraProfile:
+        return self._profile
 
     async def drive(self, axis: str, step: int, direction: int) -> None:
         if not self.camera.enabled:
@@ -174,12 +184,25 @@ class SpeedIdResult:
 
     def to_dict(self) -> dict[str, object]:
         return {
-            "kind": "speed-id", "axis": self.axis, "profile": self.profile, "elapsed_s": self.elapsed_s,
+            "kind": "speed-id",
+            "axis": self.axis,
+            "profile": self.profile,
+            "elapsed_s": self.elapsed_s,
             "max_deviation_percent": self.max_deviation_percent,
-            "runs": [{"step": r.step, "direction": r.direction, "rate_rad_s": r.rate_rad_s,
-                      "stderr_rad_s": r.stderr_rad_s, "profile_rad_s": r.profile_rad_s,
-                      "deviation_percent": r.deviation_percent, "samples": r.samples} for r in self.runs],
-            "params": self.params(), "notes": list(self.notes),
+            "runs": [
+                {
+                    "step": r.step,
+                    "direction": r.direction,
+                    "rate_rad_s": r.rate_rad_s,
+                    "stderr_rad_s": r.stderr_rad_s,
+                    "profile_rad_s": r.profile_rad_s,
+                    "deviation_percent": r.deviation_percent,
+                    "samples": r.samples,
+                }
+                for r in self.runs
+            ],
+            "params": self.params(),
+            "notes": list(self.notes),
         }
 
 
@@ -219,15 +242,22 @@ async def _run_one(rig: SpeedRig, axis: str, step: int, direction: int, hold_s: 
     expected = rig.profile.code_speed_rad_s(axis, step)
     await rig.wait(expected / rig.profile.accel_rad_s2 + SETTLE_PERIODS * rig.period_s)
     if len(ts) < 3:
-        raise DataError(f"step {step}: only {len(ts)} positions in the hold's second half; "
-                        f"the command period {rig.period_s:g} s is too long for a {hold_s:.2f} s hold")
+        raise DataError(
+            f"step {step}: only {len(ts)} positions in the hold's second half; "
+            f"the command period {rig.period_s:g} s is too long for a {hold_s:.2f} s hold"
+        )
     rate, se = _line(ts, ys)
     return StepRate(step, direction, direction * rate, se, expected, len(ts))
 
 
 async def identify_speed_table(
-    rig: SpeedRig, axis: str = "pan", *, steps: tuple[int, ...] | None = None, count: int = 8,
-    progress: Callable[[float], None] | None = None, cancel: Callable[[], bool] | None = None,
+    rig: SpeedRig,
+    axis: str = "pan",
+    *,
+    steps: tuple[int, ...] | None = None,
+    count: int = 8,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
 ) -> SpeedIdResult:
     """Measure the speed table of ``axis`` (see the module docstring)."""
     if axis not in ("pan", "tilt"):
@@ -257,8 +287,10 @@ async def identify_speed_table(
             if travel > room:
                 hold = max(0.0, (room - v * ramp) / v)
                 if hold < max(MIN_HOLD_S, 2.2 * ramp):  # the second half must be steady
-                    notes.append(f"step {step} {'+' if direction > 0 else '-'}: skipped, only "
-                                 f"{math.degrees(room):.1f}° of room to the limit")
+                    notes.append(
+                        f"step {step} {'+' if direction > 0 else '-'}: skipped, only "
+                        f"{math.degrees(room):.1f}° of room to the limit"
+                    )
                     continue
             runs.append(await _run_one(rig, axis, step, direction, hold))
             if progress is not None:
@@ -266,6 +298,8 @@ async def identify_speed_table(
     if not runs:
         raise DataError(f"no step could be measured on {axis}: no room between the limits")
     worst = max(runs, key=lambda r: abs(r.deviation_percent))
-    notes.append(f"largest departure from the {prof.name} profile: step {worst.step} "
-                 f"{'+' if worst.direction > 0 else '-'} {worst.deviation_percent:+.1f} %")
+    notes.append(
+        f"largest departure from the {prof.name} profile: step {worst.step} "
+        f"{'+' if worst.direction > 0 else '-'} {worst.deviation_percent:+.1f} %"
+    )
     return SpeedIdResult(axis, prof.name, tuple(runs), time.monotonic() - start, tuple(notes))

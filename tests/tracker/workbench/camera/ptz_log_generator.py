@@ -37,7 +37,9 @@ def linear_table(n: int, per_step_deg_s: float) -> list[float]:
     return [per_step_deg_s * k for k in range(1, n + 1)]
 
 
-def geometric_table(n: int, slowest: float, fastest: float, rng: random.Random, wiggle: float = 0.03) -> list[float]:
+def geometric_table(
+    n: int, slowest: float, fastest: float, rng: random.Random, wiggle: float = 0.03
+) -> list[float]:
     """A rising table, geometric like the makes' tables, each step jittered by ``wiggle``."""
     r = (fastest / slowest) ** (1.0 / (n - 1))
     out = [slowest * r**i * (1.0 + rng.uniform(-wiggle, wiggle)) for i in range(n)]
@@ -100,7 +102,11 @@ def generate(truth: PtzTruth, duration_s: float, seed: int) -> tuple[list[float]
         t_out.append(t)
         steps.append(step)
         theta.append(math.radians(reported))
-        v_cmd = 0.0 if step == 0 else (truth.table_pos_deg_s[step - 1] if step > 0 else -truth.table_neg_deg_s[-step - 1])
+        v_cmd = (
+            0.0
+            if step == 0
+            else (truth.table_pos_deg_s[step - 1] if step > 0 else -truth.table_neg_deg_s[-step - 1])
+        )
         for f in range(fine, fine + per_row):
             applied[f + lag_cmd] = v_cmd
         for f in range(fine, fine + per_row):
@@ -122,8 +128,15 @@ def to_csv(t: list[float], steps: list[int], theta: list[float]) -> str:
     return "\n".join(rows) + "\n"
 
 
-def random_truth(rng: random.Random, *, latency: bool = False, table: bool = False, accel: bool = False,
-                 backlash: bool = False, n_steps: int = 18) -> PtzTruth:
+def random_truth(
+    rng: random.Random,
+    *,
+    latency: bool = False,
+    table: bool = False,
+    accel: bool = False,
+    backlash: bool = False,
+    n_steps: int = 18,
+) -> PtzTruth:
     """A camera with the chosen effects hidden (the others absent: linear map, no latency, ...)."""
     period = 1.0 / rng.uniform(20.0, 50.0)
     if table:
@@ -136,8 +149,11 @@ def random_truth(rng: random.Random, *, latency: bool = False, table: bool = Fal
     lat = rng.uniform(0.06, 0.2) if latency else 0.0
     split = rng.uniform(0.3, 0.7)
     return PtzTruth(
-        period_s=period, table_pos_deg_s=pos, table_neg_deg_s=list(neg),
-        cmd_latency_s=lat * split, report_latency_s=lat * (1 - split),
+        period_s=period,
+        table_pos_deg_s=pos,
+        table_neg_deg_s=list(neg),
+        cmd_latency_s=lat * split,
+        report_latency_s=lat * (1 - split),
         accel_deg_s2=rng.uniform(80.0, 300.0) if accel else None,
         backlash_deg=rng.uniform(0.3, 1.0) if backlash else 0.0,
     )

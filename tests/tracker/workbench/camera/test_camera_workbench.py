@@ -79,7 +79,9 @@ def test_fit_recovers_every_parameter(seed: int = 51) -> None:
     # reports the spread. Latency with a nonlinear table (the case) is tested below.
     truth = random_truth(random.Random(seed), latency=True, table=True, accel=True, backlash=True)
     log = _log(truth, seed, 60.0)
-    model = CameraModel.base(log.max_step, ("latency", "speed_table", "acceleration", "backlash", "quantization"))
+    model = CameraModel.base(
+        log.max_step, ("latency", "speed_table", "acceleration", "backlash", "quantization")
+    )
     res = fit_camera(log, model)
     p = res.model.params()
     assert abs(p["latency.seconds"] - truth.latency_s) < truth.period_s

@@ -22,7 +22,7 @@ from tracker.errors import ConfigError
 from tracker.workbench.camera.speed_id import TwinRig, ViscaRig, identify_speed_table
 
 SLOWER = {14: 0.9}  # the hidden camera: step 14 is 10 % slower than the file says
-FASTER_NEG = 1.06   # and every step is 6 % faster toward negative angles
+FASTER_NEG = 1.06  # and every step is 6 % faster toward negative angles
 
 
 def hidden_profile(base: CameraProfile) -> tuple[CameraProfile, dict[int, float]]:
@@ -34,7 +34,7 @@ def hidden_profile(base: CameraProfile) -> tuple[CameraProfile, dict[int, float]
 def test_twin_identification_finds_the_departing_step() -> None:
     prof = get_profile("generic")
     hidden, true = hidden_profile(prof)
-    rig = TwinRig(CameraTwin(hidden), profile=prof, latency_s=0.06)
+    rig = TwinRig(CameraTwin(hidden), file_profile=prof, latency_s=0.06)
     res = asyncio.run(identify_speed_table(rig, "pan", count=24))
     measured = {(r.step, r.direction): r for r in res.runs}
     assert len(measured) >= 44  # the fastest steps may lack room between the limits
