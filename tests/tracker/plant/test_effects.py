@@ -1,3 +1,4 @@
+"""What an effect's own file says about it: when fitted values are too small to be a missing effect."""
 
 
 def test_stiction_within_ten_percent_of_coulomb_is_negligible_and_above_it_is_not() -> None:
