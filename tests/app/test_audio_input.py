@@ -103,6 +103,12 @@ def test_the_engine_follows_a_wav_streamed_on_its_clock(tmp_path: Path) -> None:
     stream = start_meeting_source(engine, tmp_path, audio_input=f"wav:{path}")
     assert isinstance(stream, AudioStream) and stream.note == "ready"
     seen: dict[float, float] = {}
+    # The stream counts engine time from when its thread starts: let it start before the engine
+    # moves (on a busy machine it started at 0.25 s and this test then waited 28 × 20 s).
+    deadline = time.monotonic() + 20
+    while stream.locator is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.2)
     try:
         for _ in range(28):  # 7 s of engine time (the WAV is 7.5 s) in 0.25 s steps
             asyncio.run(engine.run(realtime=False, duration_s=0.25))
