@@ -26,6 +26,7 @@ from tracker.workbench.diagnose.kstep import (
 )
 from tracker.workbench.diagnose.screening import Screen
 from tracker.workbench.fit import generic
+from tracker.workbench.measurements.idim import encoder_timing_s
 
 # A candidate must explain this share of the held-out residual torque (screening) ...
 MIN_SCREEN_GAIN = 0.08
@@ -382,7 +383,9 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     catalogue's bound cannot be resolved: both are the model's extra load state fitting noise.
     """
     if effect == "delay":
-        return model.params["delay.seconds"] >= MIN_DRIVE_DELAY_SAMPLES * ctx.sig.dt_s
+        delay_s = model.params["delay.seconds"]
+        timing_s = encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s)
+        return delay_s >= MIN_DRIVE_DELAY_SAMPLES * ctx.sig.dt_s and delay_s >= timing_s
     if effect == "saturation":
         clipped = float(np.mean(np.abs(ctx.sig.u_v) > model.params["saturation.limit"]))
         return clipped >= MIN_CLIPPED_SHARE
@@ -413,6 +416,8 @@ def finding(row: Judged, ctx: EvidenceContext) -> str | None:
         samples = row.model.params["delay.seconds"] / ctx.sig.dt_s
         if MIN_DELAY_SAMPLES <= samples < MIN_DRIVE_DELAY_SAMPLES:
             return "computational latency"
+        if row.model.params["delay.seconds"] < encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s):
+            return "within the encoder's timing"
     if row.passed and _physical(row.effect, row.model, ctx):
         return "significant but small" if negligible(row.effect, row.model) else None
     scr = row.screen

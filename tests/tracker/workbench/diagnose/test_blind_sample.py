@@ -109,3 +109,18 @@ def test_a_lugre_lag_on_top_of_a_one_sample_latency_is_not_a_drive_delay(
     delay = d.candidate("delay")
     assert not delay.significant
     assert delay.finding == "computational latency"
+
+
+def test_a_coarse_encoder_read_fast_does_not_make_a_delay(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Regression: a clean 2 kHz PID log through a 500-count truncating encoder (fresh blind set,
+    seed 777): a count only every ~12 ms while moving, and the alignment came out as a 7.4 ms
+    "delay" — finer than the encoder can time the response."""
+    import tests.truthgen.matrix as matrix
+
+    monkeypatch.setattr(matrix, "MATRIX_SEED", 777)
+    log, truth = matrix.generate_case("clean-001")
+    assert truth["hidden"] == [] and truth["encoder_counts_per_rev"] == 500
+    meas = Measurement(log.t, log.u, log.theta, "clean-001")
+    d = diagnose(meas, AxisModel.for_axis(str(truth["axis"]), gain_nm_per_v=float(truth["gain_nm_per_v"])))  # type: ignore[arg-type]
+    assert d.verdict is None
+    assert not d.candidate("delay").significant
