@@ -5,6 +5,7 @@ error budget; bad files are refused and a failed write leaves the database as it
 from __future__ import annotations
 
 import json
+import math
 import sqlite3
 from pathlib import Path
 
@@ -53,7 +54,8 @@ def test_console_and_cli_share_one_history(
     csv.write_text(
         "t,u,theta\r\n"
         + "".join(
-            f"{t!r},{u!r},{th!r}\r\n" for t, u, th in zip(meas.t_s, meas.u_v, meas.theta_rad, strict=True)
+            f"{float(t)!r},{float(u)!r},{float(th)!r}\r\n"
+            for t, u, th in zip(meas.t_s, meas.u_v, meas.theta_rad, strict=True)
         )
     )
     assert main(["model", "history", str(csv), "--db", str(db), "--replicas", "0", "--json"]) == 0
@@ -72,12 +74,16 @@ def test_console_and_cli_share_one_history(
     nb = vs[1]["fit"]["budget"]
     assert [e["change"] for e in nb["explained"]] == ["+offset"]
     assert vs[1]["fit"]["rms_deg"] < 0.5 * vs[0]["fit"]["rms_deg"]
-    assert nb["at_floor"], nb  # the hidden effect added: what is left is the floor
+    explained = nb["explained"][0]["deg"]
+    assert explained**2 == pytest.approx(b["rms_deg"] ** 2 - nb["rms_deg"] ** 2, rel=1e-6)
+    assert nb["left_deg"] < 0.5 * b["left_deg"]  # most of what was left, the effect explained
     # ... and the console works on it like on its own versions
     cmp = rig.client.post(
         f"{API}/measurements/{mid}/compare", headers=rig.h("viewer"), json={"version_id": vs[1]["id"]}
     )
-    assert cmp.status_code == 200 and cmp.json()["residual_verdict"]["consistent"]
+    assert cmp.status_code == 200, cmp.text
+    measured = cmp.json()["residual_verdict"]["rms_rad"]["measured"]
+    assert math.degrees(measured) == pytest.approx(nb["rms_deg"], rel=1e-9)  # the same figures
     # the console's next version counts the CLI's in its budget
     add = rig.client.post(
         f"{API}/measurements/{mid}/add-effect", headers=rig.h("engineer"), json={"effect": "gravity"}
@@ -158,3 +164,38 @@ def test_bad_databases_are_refused_and_a_failed_write_changes_nothing(
     assert counts() == before
     with sqlite3.connect(copy) as c:
         assert c.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+
+
+def test_the_cli_reproduces_the_consoles_history_from_the_same_data(
+    offset_csv: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The console's steps (app/heavy.py, as its workers run them) and the command line's on the
+    same log give the same versions: labels, errors, budgets."""
+    from app import heavy
+
+    first = heavy.first_version("run.csv", "pan", offset_csv)
+    b1 = first["fit"]["budget"]
+    added = heavy.refit(
+        offset_csv, "run.csv", "pan", first["model"], None, "offset", "+offset", [("base", b1["rms_deg"])]
+    )
+    console = [first["fit"], added["fit"]]
+
+    csv = tmp_path / "run.csv"
+    csv.write_text(offset_csv)
+    ws = str(tmp_path / "ws")
+    assert main(["model", "fit", str(csv), "--axis", "pan", "--workspace", ws]) == 0
+    assert main(["model", "fit", str(csv), "--axis", "pan", "--effects", "offset", "--workspace", ws]) == 0
+    capsys.readouterr()
+    png = tmp_path / "h.png"
+    assert main(["model", "history", str(csv), "--workspace", ws, "--json", "--plot", str(png)]) == 0
+    cli = json.loads(capsys.readouterr().out.splitlines()[0])["versions"]
+    assert [v["change"] for v in cli] == ["base", "+offset"]
+    for c, k in zip(console, cli, strict=True):
+        assert k["rms_deg"] == pytest.approx(c["rms_deg"], rel=1e-6)
+        assert k["fit_percent"] == pytest.approx(c["fit_percent"], abs=1e-6)
+        for key in ("rms_deg", "floor_deg", "left_deg", "quantization_deg"):
+            assert k["budget"][key] == pytest.approx(c["budget"][key], rel=1e-6, abs=1e-9), key
+    assert [e["change"] for e in cli[1]["budget"]["explained"]] == ["+offset"]
+    assert [v["budget"]["at_floor"] for v in cli] == [c["budget"]["at_floor"] for c in console]
+    assert not cli[0]["budget"]["at_floor"]
+    assert png.stat().st_size > 20_000

@@ -240,7 +240,7 @@ def add_store_options(p: argparse.ArgumentParser) -> None:
         "--db",
         default=None,
         metavar="PATH",
-        help="keep versions in the console's database instead (data_dir/console.sqlite3): the browser shows them",
+        help="keep versions in the console's database (data_dir/console.sqlite3): the browser shows them",
     )
     add_plot_option(p)
 
