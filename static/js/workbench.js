@@ -111,12 +111,17 @@ function showBudget(list) {
   if (!withB.length) { box.innerHTML = `<div class="muted">No error budget stored for these versions.</div>`; return; }
   const colours = new Map([...BUDGET_FIXED, ["left", "#e8590c"]]);
   const total = withB[0][1].rms_deg ** 2 || 1;
+  // every bar against the newest version's floor: the floor belongs to the run (a wrong model's
+  // residual test reads part of its own error as disturbance, so an early floor runs high)
+  const fl = withB[withB.length - 1][1];
+  const rebased = (b) => ({ ...b, quantization_deg: fl.quantization_deg, noise_deg: fl.noise_deg, disturbance_deg: fl.disturbance_deg,
+    left_deg: Math.sqrt(Math.max(b.rms_deg ** 2 - fl.floor_deg ** 2, 0)) });
   const W = 360, H = 150, pad = 30, bw = Math.min(48, (W - pad) / withB.length * 0.6);
   let rects = "";
   withB.forEach(([n, b], i) => {
     const x = pad + (i + 0.5) * (W - pad) / withB.length - bw / 2;
     let y = H - 18;
-    for (const [label, ms] of budgetSegments(b)) {
+    for (const [label, ms] of budgetSegments(rebased(b))) {
       if (!colours.has(label)) colours.set(label, EFFECT_COLOURS[(colours.size - 4) % EFFECT_COLOURS.length]);
       const h = Math.max(0, ms) / total * (H - 28);
       y -= h;

@@ -1,12 +1,7 @@
 """The loop as one story, in Chromium: practice rig → run and record → open in the workbench →
-diagnose → add the named effect → the residual panel, the diagnosis and the error budget tell the
-same story; then the command line reads the same history from the console's database and
-reproduces it from the same data.
-
-Whether the last version is judged *at* the floor depends on the floor's load-disturbance estimate
-(docs/workbench.md, "Limit: the load disturbance"): on practice-rig logs it runs low, so the test
-holds the three panels to agreeing with each other, whichever way they judge, and the added effect
-to have explained nearly all of the first version's error."""
+diagnose → add the named effect → the residual panel and the diagnosis agree → the error budget
+shows the remainder at the floor; then the command line reads the same history from the console's
+database and reproduces it from the same data."""
 
 from __future__ import annotations
 
@@ -55,21 +50,13 @@ def test_practice_to_the_floor_and_the_cli_tells_the_same_story(  # type: ignore
         "document.getElementById('wb-verdict').textContent.startsWith('Nothing significant')", timeout=8 * T
     )
     verdict = page.text_content("#wb-verdict")
-    consistent = page.get_attribute("#resid-note", "data-consistent") == "yes"
-    at_floor = page.get_attribute("#budget-verdict", "data-at-floor") == "yes"
+    assert "agree: nothing is missing" in verdict, verdict  # the diagnosis card ...
+    assert page.get_attribute("#resid-note", "data-consistent") == "yes"  # ... and the residual panel
+    assert "Residual consistent with a right model" in page.text_content("#resid-verdict")
+    assert page.get_attribute("#budget-verdict", "data-at-floor") == "yes"  # ... and the budget
+    assert "At the floor" in page.text_content("#budget-verdict")
     budget = page.evaluate("window.console3dat_workbench.versions[1].fit.budget")
-    # the diagnosis card says how it fits with the residual panel, and the budget follows the panel
-    if consistent:
-        assert "agree: nothing is missing" in verdict, verdict
-        assert "Residual consistent with a right model" in page.text_content("#resid-verdict")
-    else:
-        assert "They differ, for a reason" in verdict, verdict
-        assert "Model error left in the residual" in page.text_content("#resid-verdict")
-    assert (
-        at_floor == (budget["consistent"] or budget["left_deg"] <= 0) and budget["consistent"] == consistent
-    )
-    text = page.text_content("#budget-verdict")
-    assert ("At the floor" in text) if at_floor else ("left above the floor" in text), text
+    assert budget["consistent"] and budget["rms_deg"] < 1.5 * budget["floor_deg"]
     # the effect explained nearly all of version 1's error: the stacked bar shows it
     v1 = page.evaluate("window.console3dat_workbench.versions[0].fit.budget")
     explained = budget["explained"][0]

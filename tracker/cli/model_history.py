@@ -152,14 +152,15 @@ def record_version(
 
 def format_history(meas: Measurement, versions: list[ModelVersion], where: str) -> str:
     """The error falling version by version, and the error budget of the latest version."""
+    latest = versions[-1].budget if versions else None
     lines = [
         f"{meas.source}: {len(versions)} version(s) in {where}",
         f"{'v':>3} {'change':<24} {'RMS deg':>11} {'fit %':>9} {'incr. fit %':>11}  "
-        f"{'floor deg':>9}  left deg",
+        "left above the floor, deg",
     ]
     for v in versions:
-        b = v.budget
-        tail = f"{b.floor_deg:9.4g}  {b.left_deg:.4g}{'  (at the floor)' if b.at_floor else ''}" if b else ""
+        b = v.budget.rebased(latest) if v.budget is not None and latest is not None else None
+        tail = f"{b.left_deg:.4g}{'  (at the floor)' if b.left_deg <= 0 or b.consistent else ''}" if b else ""
         lines.append(
             f"{v.number:>3} {v.change:<24} {v.rms_deg:11.4g} {v.fit_percent:9.3f} "
             f"{v.fit_percent_increment:11.2f}  {tail}"

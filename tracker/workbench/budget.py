@@ -17,6 +17,7 @@ is done for this run.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -59,6 +60,19 @@ class ErrorBudget:
     def at_floor(self) -> bool:
         """Nothing is left for the model: the error is what a right model leaves here."""
         return self.consistent or self.left_deg <= 0.0
+
+    def rebased(self, floor: ErrorBudget) -> ErrorBudget:
+        """This version's budget against the floor of another version of the same run (the
+        newest): the floor belongs to the run, but a wrong model's residual test reads part of
+        its own error as disturbance, so an early version's floor runs high."""
+        return dataclasses.replace(
+            self,
+            floor_deg=floor.floor_deg,
+            quantization_deg=floor.quantization_deg,
+            noise_deg=floor.noise_deg,
+            disturbance_deg=floor.disturbance_deg,
+            left_deg=math.sqrt(max(self.rms_deg**2 - floor.floor_deg**2, 0.0)),
+        )
 
     def segments_deg2(self) -> list[tuple[str, float]]:
         """The stacked bar, bottom to top: (label, mean square deg²), all ≥ 0 except an

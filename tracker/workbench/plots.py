@@ -111,19 +111,21 @@ def _versions(ax: Any, versions: Sequence[ModelVersion]) -> None:  # noqa: ANN40
 
 def _budget(ax: Any, versions: Sequence[ModelVersion]) -> None:  # noqa: ANN401
     """Stacked bar per version: sensor floor, the rest of the floor, what each change explained,
-    what is left (mean squares, as % of version 1's)."""
+    what is left (mean squares, as % of version 1's), all against the newest version's floor."""
     with_b = [v for v in versions if v.budget is not None]
     if not with_b:
         ax.text(0.5, 0.5, "no error budget stored\n(versions kept without one)", ha="center", va="center")
         ax.set_axis_off()
         return
     total = with_b[0].budget_rms_deg ** 2 or 1.0
+    latest = with_b[-1].budget
+    assert latest is not None
     colours: dict[str, str] = dict(BUDGET_COLOURS)
     used: dict[str, Any] = {}
     for i, v in enumerate(with_b):
         assert v.budget is not None
         bottom = 0.0
-        for label, ms in v.budget.segments_deg2():
+        for label, ms in v.budget.rebased(latest).segments_deg2():
             if label not in colours:
                 colours[label] = EFFECT_COLOURS[(len(colours) - len(BUDGET_COLOURS)) % len(EFFECT_COLOURS)]
             h = 100.0 * max(ms, 0.0) / total
