@@ -129,7 +129,12 @@ def _unexplained_k_step(resid_rad: FloatArray, est: StateEstimate, h: FloatArray
     (zero before sample k): least squares on the columns passed through the window response."""
     n = resid_rad.size
     cols = _catalogue_columns(est)
-    resp = np.column_stack([np.convolve(cols[:, j], h)[:n] for j in range(cols.shape[1])])
+    # through the window response, and through its first moment (the smoothed start state has
+    # already taken part of a torque error into its velocity)
+    box = np.where(h > 0, h[1] if h.size > 1 else 0.0, 0.0)
+    resp = np.column_stack(
+        [np.convolve(cols[:, j], f)[:n] for f in (h, box) for j in range(cols.shape[1])]
+    )
     coef, *_ = np.linalg.lstsq(resp[k:], resid_rad[k:], rcond=None)
     out = np.zeros(n)
     out[k:] = resid_rad[k:] - resp[k:] @ coef
