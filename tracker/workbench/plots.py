@@ -132,6 +132,17 @@ def _budget(ax: Any, versions: Sequence[ModelVersion]) -> None:  # noqa: ANN401
             bar = ax.bar(i + 1, h, bottom=bottom, color=colours[label], width=0.6, edgecolor="white", lw=0.5)
             used.setdefault(label, bar)
             bottom += h
+        b = v.budget.rebased(latest)
+        ax.annotate(
+            f"{b.rms_deg:.3g}° RMS\nfloor {b.floor_deg:.3g}°\nleft {b.left_deg:.3g}°",
+            (i + 1, min(bottom, 100.0)),
+            ha="center",
+            va="top" if bottom > 60 else "bottom",
+            fontsize=7,
+            xytext=(0, -4 if bottom > 60 else 4),
+            textcoords="offset points",
+            color="white" if bottom > 60 else "#212529",
+        )
     ax.set_xticks(np.arange(1, len(with_b) + 1), [f"v{v.number}" for v in with_b])
     last = with_b[-1].budget
     assert last is not None
@@ -139,7 +150,7 @@ def _budget(ax: Any, versions: Sequence[ModelVersion]) -> None:  # noqa: ANN401
         "at the floor: done for this run" if last.at_floor else f"{last.left_deg:.3g}° left above the floor"
     )
     ax.set(title=f"error budget (latest: {done})", ylabel="% of v1's squared error")
-    ax.legend(used.values(), used.keys(), fontsize=7, loc="upper right")
+    ax.legend(used.values(), used.keys(), fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
 
 
 def plot_workbench(
