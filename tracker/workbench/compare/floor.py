@@ -38,6 +38,8 @@ DEFAULT_REPLICAS = 5
 # Bandwidth of the tracking loop that keeps a replica on the measured trajectory: well below the
 # horizon's 1/T (it must not hide the model's own dynamics inside a window), above the slow drift.
 TRACKING_BANDWIDTH_HZ = 2.0
+# Largest amplitude factor by which a disturbance's calibration through the pipeline may scale it.
+CALIBRATION_CAP = 2.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,12 +131,7 @@ def _unexplained_k_step(resid_rad: FloatArray, est: StateEstimate, h: FloatArray
     (zero before sample k): least squares on the columns passed through the window response."""
     n = resid_rad.size
     cols = _catalogue_columns(est)
-    # through the window response, and through its first moment (the smoothed start state has
-    # already taken part of a torque error into its velocity)
-    box = np.where(h > 0, h[1] if h.size > 1 else 0.0, 0.0)
-    resp = np.column_stack(
-        [np.convolve(cols[:, j], f)[:n] for f in (h, box) for j in range(cols.shape[1])]
-    )
+    resp = np.column_stack([np.convolve(cols[:, j], h)[:n] for j in range(cols.shape[1])])
     coef, *_ = np.linalg.lstsq(resp[k:], resid_rad[k:], rcond=None)
     out = np.zeros(n)
     out[k:] = resid_rad[k:] - resp[k:] @ coef
@@ -185,8 +182,10 @@ def disturbance_amplitude(
     left_d = _unexplained_k_step(rep.theta_rad - predict_k_step(rep, model, est_d, k), est_d, h, k)
     got = float(np.sum(np.maximum(_smoothed_power(left_d) - p_noise, 0.0)[use]))
     want = float(np.sum(excess[use]))
-    if got > 0:
-        amp *= math.sqrt(want / got)
+    # The smoothed states only ever take away from the disturbance's effect (factor ≥ 1); a
+    # disturbance far below the sensor's floor cannot be calibrated (``got`` is then noise), so
+    # the factor is capped where the lean is ~1.2–1.4 on the logs measured.
+    amp *= min(max(math.sqrt(want / got), 1.0), CALIBRATION_CAP) if got > 0 else CALIBRATION_CAP
     return np.asarray(amp, dtype=np.float64)
 
 
