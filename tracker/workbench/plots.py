@@ -3,8 +3,9 @@
 Panels: measured vs predicted angle; the residual with the band a right model leaves on this
 run (± the simulated replicas' RMS, and their 99 % bound); the residual's autocorrelation inside
 the replicas' envelope; error by regime against the right model's bound; and, for a history, the
-RMS per version and the error budget as a stacked bar over versions. matplotlib (installed with
-python-control) is imported here only, with the Agg backend: no display is needed.
+RMS per version and the error budget as a stacked bar over versions. matplotlib comes with
+python-control; this module (imported by the command line only for ``--plot``) switches it to the
+Agg backend: no display is needed.
 """
 
 from __future__ import annotations

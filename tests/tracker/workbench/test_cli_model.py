@@ -138,10 +138,15 @@ def test_plot_writes_the_consoles_pictures_and_refuses_other_names(
     assert "does not exist" in capsys.readouterr().err
 
 
-def test_matplotlib_is_not_imported_without_plot() -> None:
+def test_the_plotting_module_is_imported_only_for_plot() -> None:
+    """(matplotlib itself comes with python-control; the pictures' module and backend only with --plot)"""
     import subprocess
     import sys
 
-    code = "import tracker.cli.model, tracker.cli.model_history, sys; print('matplotlib' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "False"
+    code = (
+        "import sys, tracker.cli.model, tracker.cli.model_history; "
+        "print('tracker.workbench.plots' in sys.modules)"
+    )
+    root = Path(__file__).resolve().parents[3]
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root)
+    assert run.stdout.strip() == "False"
