@@ -6,6 +6,7 @@ database and reproduces it from the same data."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -65,7 +66,10 @@ def test_practice_to_the_floor_and_the_cli_tells_the_same_story(  # type: ignore
     assert page.locator('#wb-budget rect[data-part="explained by +gravity"]').count() == 1
     versions = page.evaluate("window.console3dat_workbench.versions")
     mid = versions[0]["measurement_id"]
-    page.screenshot(path=str(server.data_dir / "story.png"), full_page=True)
+    # STORY_SCREENSHOT=FILE.png keeps a picture of the page (docs/img/console-budget.png came from it)
+    page.screenshot(
+        path=os.environ.get("STORY_SCREENSHOT", str(server.data_dir / "story.png")), full_page=True
+    )
 
     # the command line: the same history from the console's database ...
     db = server.data_dir / "console.sqlite3"
