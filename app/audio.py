@@ -8,9 +8,12 @@ The input is the ``audio_input`` setting (``TRACKER_AUDIO_INPUT``):
   is streamed block by block through the localizer and the talker tracker
   (:class:`tracker.audio.stream.StreamingLocator`) paced by the engine clock, looping;
 * ``wav:PATH``: a multichannel WAV file, streamed the same way (looping);
-* ``live`` or ``live:DEVICE``: the sound card (PortAudio via sounddevice). When PortAudio or
-  the device is missing the status says why (``audio`` field) and the console keeps manual
-  pointing.
+* ``live`` or ``live:DEVICE``: the sound card (PortAudio via sounddevice,
+  :class:`tracker.audio.capture.LiveCapture`): opened at its own rate (or
+  ``audio_device_rate_hz``) and resampled to 16 kHz, the array's mics picked from its channels
+  by ``audio_channel_map``. When PortAudio is missing the status says why (``audio`` field);
+  when the device is missing or disappears the status shows the fault (``audio_capture``) and
+  capture retries with back-off until it returns; the console keeps manual pointing.
 
 The array is the ``array_file`` setting (default: the shipped 4-mic square); the simulated
 meeting is rendered for it. A head-mounted array (``"mount": "head"``) works with live capture:
@@ -44,6 +47,7 @@ from tracker.targets import Target
 if TYPE_CHECKING:
     from tracker.audio.array import MicArray
     from tracker.audio.pipeline import Pipeline
+    from tracker.audio.policy import CameraPolicy
 
 log = logging.getLogger("app.audio")
 FloatArray = NDArray[np.float64]
@@ -150,8 +154,9 @@ def load_meeting_array(array_file: Path | str | None = None) -> MicArray:
                       else ARRAYS_DIR / MeetingSettings().array_file)
 
 
-def meeting_pipeline(fs_hz: int, array: Any = None) -> Pipeline:
-    """The meeting's localizer, windows and tracker settings for audio at ``fs_hz``.
+def meeting_pipeline(fs_hz: int, array: Any = None, policy: CameraPolicy | None = None) -> Pipeline:
+    """The meeting's localizer, windows and tracker settings for audio at ``fs_hz``, the
+    trackers framing talkers with the camera-operator ``policy`` (their defaults when None).
 
     The camera and its head sit on the wall, so talkers are in -90°..90° of the base frame
     (no mirror image of the wall), within the array file's field of view, and the map tracker
@@ -167,10 +172,13 @@ def meeting_pipeline(fs_hz: int, array: Any = None) -> Pipeline:
     array = array if array is not None else load_meeting_array()
     room_range = array.field_of_view.narrowed((-np.pi / 2, np.pi / 2), array.name).azimuth_rad
     options = {} if array.head_mounted else {"azimuth_range_rad": room_range}
-    return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=settings.tracking,
+    tracking, map_tracking = settings.tracking, settings.map_tracking
+    if policy is not None:
+        tracking, map_tracking = policy.apply(tracking), policy.apply(map_tracking)
+    return Pipeline(array, fs_hz, settings.method, settings.windows, tracking=tracking,
                     localizer_options=options,
                     tracker=choose_tracker(settings.method),
-                    map_tracking=settings.map_tracking,
+                    map_tracking=map_tracking,
                     base_azimuth_range_rad=room_range if array.head_mounted else None)
 
 
@@ -218,27 +226,31 @@ class AudioStream:
     ...", or why audio is unavailable); ``cpu_ms_per_s`` the localizer's CPU per second of audio.
     """
 
-    def __init__(self, engine: Any, label: str, array: MicArray | None = None) -> None:
+    def __init__(self, engine: Any, label: str, array: MicArray | None = None,
+                 policy: CameraPolicy | None = None) -> None:
+        from tracker.audio.policy import CameraPolicy
         from tracker.audio.stream import StreamTargetSource
 
         self.engine = engine
         self.array = array if array is not None else load_meeting_array()
+        self.policy = policy if policy is not None else CameraPolicy()
         self.source = StreamTargetSource(name=label, stale_s=2.0)
         self.note = "starting"
         self.worker: Any = None  # the subprocess building the meeting audio, while it runs
         self.locator: Any = None
-        self.live: Any = None  # the sound card's source while listening live
         self.closed = False
         self._stop = threading.Event()
+        self.live: Any = None  # live capture, while listening
         self._thread: threading.Thread | None = None
         self._cpu_s = 0.0
         self._audio_s = 0.0
 
     @property
     def dropped_blocks(self) -> int:
-        """Live input blocks that came after lost input (0 for a file or the simulated room,
-        which wait for the localizer)."""
-        return int(getattr(self.live, "overflows", 0))
+        """Live input blocks lost: flagged by the card (overflow) or too late for the localizer
+        (0 for a file or the simulated room, which wait for the localizer)."""
+        live = self.live
+        return int(getattr(live, "overflows", 0)) + int(getattr(live, "dropped_blocks", 0))
 
     @property
     def cpu_ms_per_s(self) -> float:
@@ -263,9 +275,20 @@ class AudioStream:
         """Stop streaming (at shutdown)."""
         self.closed = True
         self._stop.set()
+        live = self.live
+        if live is not None:  # wakes a capture waiting for its device
+            live.close()
         proc = self.worker
         if proc is not None and proc.poll() is None:
             proc.terminate()
+
+    def set_policy(self, policy: CameraPolicy) -> None:
+        """Frame talkers with ``policy`` from the stream's next frame on (and in every later
+        loop or reconnection): no restart, the tracker keeps its talkers."""
+        self.policy = policy
+        loc = self.locator
+        if loc is not None:
+            loc.set_policy(policy)
 
     def engine_time_s(self) -> float:
         return float(self.engine.status().t_s)
@@ -274,7 +297,7 @@ class AudioStream:
         from tracker.audio.stream import StreamingLocator
         from tracker.errors import DataError
 
-        pipeline = meeting_pipeline(fs_hz, self.array)
+        pipeline = meeting_pipeline(fs_hz, self.array, self.policy)
         if n_channels != pipeline.array.n_mics:
             raise DataError(f"the input has {n_channels} channel(s) but {pipeline.array.name} "
                             f"has {pipeline.array.n_mics} mics")
@@ -282,6 +305,7 @@ class AudioStream:
             self._cpu_s += self.locator.compute_s
             self._audio_s += self.locator.samples_in / self.locator.fs_hz
         self.locator = StreamingLocator(pipeline)
+        self.locator.set_policy(self.policy)  # a policy set while this one was being built
         return self.locator
 
     def play(self, fs_hz: int, audio: FloatArray) -> None:
@@ -306,22 +330,61 @@ class AudioStream:
     def listen(self, live: Any) -> None:
         """Stream live capture until closed (the device paces it).
 
-        With a head-mounted array every block carries the engine's measured pan and tilt at
-        the moment it arrived (:meth:`_record_head`).
+        When the device comes back after a fault (``live.generation`` changes) the stream starts
+        a new locator: the audio before and after the gap share no clock. With a head-mounted
+        array every block carries the engine's measured pan and tilt at the moment it arrived
+        (:meth:`_record_head`).
         """
         self.live = live
         try:
-            loc = self._new_locator(live.fs_hz, live.n_channels)
+            generation = None
+            loc: Any = None
             arrivals: deque[float] = deque(maxlen=50)  # engine time minus stream time, 5 s
             for block in live.blocks(BLOCK_S):
                 if self._stop.is_set():
                     break
+                if loc is None or getattr(live, "generation", 0) != generation:
+                    generation = getattr(live, "generation", 0)
+                    loc = self._new_locator(live.fs_hz, live.n_channels)
+                    arrivals.clear()
                 if loc.head_poses is not None:
                     self._record_head(loc, block.shape[1], arrivals)
                 for target in loc.push(block):
                     self.source.offer(target, self.engine_time_s())
         finally:
             live.close()
+
+    def talkers_state(self) -> list[dict[str, Any]]:
+        """The talkers the stream has followed, in degrees, ``last_spoken_ago_s`` counted from
+        the newest frame (None if she never spoke while followed)."""
+        loc = self.locator
+        if loc is None:
+            return []
+        latest = loc.latest
+        now = latest.t_s if latest is not None else 0.0
+        out = []
+        for t in loc.talkers():
+            spoke = math.isfinite(t.last_spoken_s)
+            out.append({
+                "talker_id": t.talker_id,
+                "azimuth_deg": round(math.degrees(t.azimuth_rad), 2),
+                "elevation_deg": None if t.elevation_rad is None else round(math.degrees(t.elevation_rad), 2),
+                "speaking": t.speaking,
+                "last_spoken_ago_s": round(max(0.0, now - t.last_spoken_s), 2) if spoke else None,
+                "speaking_s": round(t.speaking_s, 2),
+            })
+        return out
+
+    def capture_state(self) -> dict[str, Any] | None:
+        """Live capture's status (device, rates, channel map, counts, fault), or None."""
+        status = getattr(self.live, "status", None)
+        if status is None:
+            return None
+        import dataclasses
+
+        out: dict[str, Any] = dataclasses.asdict(status())
+        out["channel_map"] = list(out["channel_map"])
+        return out
 
     def _record_head(self, loc: Any, n_block: int, arrivals: deque[float]) -> None:
         """Add the engine's pan/tilt now, time-stamped on the stream's clock.
@@ -353,10 +416,12 @@ def parse_input(value: str | None) -> tuple[str, str | None]:
 
 
 def start_meeting_source(engine: Any, cache_dir: Path, seed: int = 1, duration_s: float = 60.0,
-                         audio_input: str | None = None, array_file: Path | str | None = None
-                         ) -> AudioStream:
+                         audio_input: str | None = None, array_file: Path | str | None = None,
+                         policy: CameraPolicy | None = None, capture: Any = None) -> AudioStream:
     """Plug the streamed talker tracker into ``engine`` now and start streaming ``audio_input``
-    heard by the array of ``array_file`` (default: the shipped 4-mic square).
+    heard by the array of ``array_file`` (default: the shipped 4-mic square), the camera
+    framing talkers with ``policy``; live input opens the sound card with ``capture`` (a
+    :class:`~tracker.audio.capture.CaptureSettings`; the device's defaults when None).
 
     Problems opening the input (PortAudio missing, a WAV with the wrong channel count, a
     head-mounted array on an input that cannot follow the head) end up in the returned
@@ -366,10 +431,10 @@ def start_meeting_source(engine: Any, cache_dir: Path, seed: int = 1, duration_s
     kind, arg = parse_input(audio_input)
     array = load_meeting_array(array_file)
     if kind == "live":
-        return _start_live(engine, arg, array)
+        return _start_live(engine, arg, array, policy, capture)
     if kind == "wav":
-        return _start_wav(engine, Path(str(arg)), array)
-    stream = AudioStream(engine, "simulated meeting", array)
+        return _start_wav(engine, Path(str(arg)), array, policy)
+    stream = AudioStream(engine, "simulated meeting", array, policy)
     engine.set_target_source(stream.source)
     if array.head_mounted:
         stream.note = (f"audio unavailable: {array.name} is head-mounted and the simulated "
@@ -419,11 +484,12 @@ def _build_in_worker(stream: AudioStream, seed: int, duration_s: float, cache: P
     return loaded
 
 
-def _start_wav(engine: Any, path: Path, array: MicArray) -> AudioStream:
+def _start_wav(engine: Any, path: Path, array: MicArray, policy: CameraPolicy | None = None
+               ) -> AudioStream:
     from tracker.audio.sources import read_wav
     from tracker.errors import TrackerError
 
-    stream = AudioStream(engine, f"wav {path.name}", array)
+    stream = AudioStream(engine, f"wav {path.name}", array, policy)
     engine.set_target_source(stream.source)
     if array.head_mounted:
         stream.note = (f"audio unavailable: {array.name} is head-mounted and a WAV replay "
@@ -441,19 +507,23 @@ def _start_wav(engine: Any, path: Path, array: MicArray) -> AudioStream:
     return stream
 
 
-def _start_live(engine: Any, device: str | None, array: MicArray) -> AudioStream:
-    from tracker.audio import sources
+def _start_live(engine: Any, device: str | None, array: MicArray,
+                policy: CameraPolicy | None = None, capture: Any = None) -> AudioStream:
+    from tracker.audio import capture as live_capture
     from tracker.errors import TrackerError
 
-    stream = AudioStream(engine, "live capture", array)
+    stream = AudioStream(engine, "live capture", array, policy)
     engine.set_target_source(stream.source)
-    dev: int | str | None = int(device) if device is not None and device.isdigit() else device
+    if capture is None:
+        dev: int | str | None = int(device) if device is not None and device.isdigit() else device
+        capture = live_capture.CaptureSettings(device=dev)
     try:
-        live = sources.LiveSource(array.n_mics, 16000, dev)
-    except TrackerError as exc:  # PortAudio or the device missing: a clear status, no crash
+        live = live_capture.LiveCapture(array.n_mics, capture)
+    except TrackerError as exc:  # PortAudio missing, a channel map that does not fit: say why
         stream.note = f"live capture unavailable: {exc}"
         log.error("live capture unavailable: %s", exc)
         return stream
+    stream.live = live
     stream.note = "ready"
     stream.start(lambda: stream.listen(live))
     return stream

@@ -273,7 +273,7 @@ class Database:
                 (time.time(),),
             )
 
-    # --- small key/value store (practice rig secret) --------------------------------------------
+    # --- small key/value store (practice rig secret, camera policy) ---------------------------
     def put_value(self, key: str, value: dict[str, Any]) -> None:
         with self._tx() as c:
             c.execute(
@@ -285,6 +285,10 @@ class Database:
     def get_value(self, key: str) -> dict[str, Any] | None:
         row = self._one("SELECT value FROM kv WHERE key = ?", (key,))
         return json.loads(row["value"]) if row else None
+
+    def delete_value(self, key: str) -> None:
+        with self._tx() as c:
+            c.execute("DELETE FROM kv WHERE key = ?", (key,))
 
 
 def _key(row: sqlite3.Row) -> KeyRecord:

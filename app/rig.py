@@ -101,10 +101,14 @@ def check_settings(settings: Settings) -> None:
         from tracker.drivers.sim import load_rig_config
 
         load_rig_config(settings.rig_config)
-    if settings.array_file is not None:
-        from tracker.audio.array import load_array
+    if settings.array_file is not None or settings.audio_channel_map is not None:
+        from app.audio import load_meeting_array
 
-        load_array(settings.array_file)
+        array = load_meeting_array(settings.array_file)
+        try:
+            capture_settings(settings).mics_to_channels(array.n_mics)
+        except ConfigError as exc:
+            raise ConfigError(f"setting 'audio_channel_map': {exc}") from None
 
 
 def build_engine(settings: Settings) -> Any:
@@ -163,8 +167,9 @@ def random_practice_model(axis: str, seed: int) -> Any:
     return random_hidden_model(axis, [effect], seed)
 
 
-def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:
-    """Wire the simulated room's talker tracker in as the engine's target source.
+def attach_audio(engine: Any, settings: Settings, policy: Any = None) -> tuple[Any, str | None]:
+    """Wire the simulated room's talker tracker in as the engine's target source, framing
+    talkers with the camera-operator ``policy`` (a CameraPolicy; the defaults when None).
 
     Returns (handle, note); the handle is None and the note says why when audio is unavailable.
     """
@@ -172,10 +177,25 @@ def attach_audio(engine: Any, settings: Settings) -> tuple[Any, str | None]:
 
     try:
         source = start_meeting_source(engine, settings.data_dir, audio_input=settings.audio_input,
-                                      array_file=settings.array_file)
+                                      array_file=settings.array_file, policy=policy,
+                                      capture=capture_settings(settings))
     except ImportError as exc:  # audio stack missing: manual pointing still works
         return None, f"audio unavailable: {exc}"
     return source, None
+
+
+def capture_settings(settings: Settings) -> Any:
+    """How live capture opens the sound card (``audio_input = "live[:DEVICE]"``, the device's
+    rate and channel map): a CaptureSettings."""
+    from app.settings import parse_audio_input
+    from tracker.audio.capture import CaptureSettings
+
+    kind, device = parse_audio_input(settings.audio_input)
+    dev: int | str | None = int(device) if device is not None and device.isdigit() else device
+    channel_map = settings.audio_channel_map
+    return CaptureSettings(device=dev if kind == "live" else None,
+                           device_rate_hz=settings.audio_device_rate_hz,
+                           channel_map=tuple(channel_map) if channel_map is not None else None)
 
 
 async def detach_audio(handle: Any) -> None:

@@ -56,6 +56,13 @@ class StatusOut(BaseModel):
     limits_deg: dict[str, float]
     telemetry_clients: int
     audio: str = Field("off", description="the simulated room's state as target source")
+    audio_capture: dict[str, Any] | None = Field(
+        None, description="live capture: state (running | fault | closed), device, device and "
+        "pipeline rates, channel map, blocks, overflows, dropped blocks, faults, reconnects, fault, "
+        "retry_in_s, resample_cpu_ms_per_s")
+    talkers: list[dict[str, Any]] = Field(
+        default_factory=list, description="the talkers the tracker has followed: talker_id, "
+        "azimuth_deg, elevation_deg, speaking, last_spoken_ago_s, speaking_s")
     viewer: dict[str, Any] | None = None
     driver: dict[str, Any] = Field(
         default_factory=lambda: {"kind": "sim"},

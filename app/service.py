@@ -27,6 +27,7 @@ from app.db import Database
 from app.jobs import JobRunner
 from app.metrics import Metrics
 from app.persist import SettingsStore
+from app.policy import PolicyHolder
 from app.settings import Settings
 from app.telemetry import TelemetryHub
 from app.view_proxy import ViewSessions
@@ -60,6 +61,7 @@ class Service:
         self.bad_keys = BadKeyBackoff(
             settings.bad_key_limit, settings.bad_key_window_s, settings.bad_key_max_block_s
         )
+        self.policy = PolicyHolder(settings.camera_policy, self.db)
         self.engine: Any = None
         self.audio: Any = None
         self.viewer: Any = None
@@ -87,7 +89,9 @@ class Service:
         self.engine_started_s = time.perf_counter()
         self.hub.start(self.engine)
         if s.audio_enabled:
-            self.audio, self.audio_note = rig.attach_audio(self.engine, s)
+            self.audio, self.audio_note = rig.attach_audio(self.engine, s, self.policy.policy)
+            if self.audio is not None:
+                self.policy.listeners.append(self.audio.set_policy)
             if s.track_on_start and self.audio is not None:
                 self.engine.set_tracking(True)  # a newcomer first sees the camera follow the talker
         if s.viewer_enabled:
@@ -97,6 +101,8 @@ class Service:
                 self.viewer = RigViewer(s.viewer_host, s.viewer_port, load_mics(s.array_file),
                                         array_is_head_mounted(s.array_file))
                 self.viewer.start(self.hub, s.viewer_rate_hz)
+                if self.audio is not None and hasattr(self.audio, "talkers_state"):
+                    self.viewer.talkers = self.audio.talkers_state
             except OSError as exc:
                 log.error("3D view not started (%s:%d): %s", s.viewer_host, s.viewer_port, exc)
                 self.viewer = None

@@ -70,6 +70,20 @@ class Settings(BaseSettings):
         description="what the talker tracker listens to: 'simulated' (the meeting room), "
         "'live' or 'live:DEVICE' (sound card through PortAudio), 'wav:PATH' (a multichannel file)",
     )
+    audio_device_rate_hz: int | None = Field(
+        None, ge=8000, le=384000,
+        description="live capture: open the sound card at this rate (16000, 44100, 48000 ...; "
+        "resampled to the localizer's 16 kHz); default: the device's own default rate")
+    audio_channel_map: list[int] | None = Field(
+        None, description="live capture: the device channel (from 0) of each array microphone, "
+        "in the array file's order, e.g. [2, 3, 4, 5]; default: the first n_mics channels")
+    camera_policy: dict[str, float] = Field(
+        default_factory=dict,
+        description="the camera operator's policy for this room (docs/audio.md, 'The camera "
+        "operator'): reaction_time_s, min_hold_s, pause_tolerance_s, deadband_deg, "
+        "wide_after_switches, wide_window_s, wide_release_s, lead_s; a [camera_policy] table in "
+        "the config file or TRACKER_CAMERA_POLICY as JSON; values an engineer stores through the "
+        "API take precedence")
 
     viewer_enabled: bool = Field(True, description="start the viser 3D view")
     viewer_host: str = Field("127.0.0.1", description="viser binds here; it has no authentication")
@@ -129,6 +143,29 @@ class Settings(BaseSettings):
     @classmethod
     def _check_audio_input(cls, value: str) -> str:
         parse_audio_input(value)
+        return value
+
+    @field_validator("audio_channel_map")
+    @classmethod
+    def _check_channel_map(cls, value: list[int] | None) -> list[int] | None:
+        from tracker.audio.capture import CaptureSettings
+
+        if value is not None:
+            try:
+                CaptureSettings(channel_map=tuple(value))
+            except ConfigError as exc:
+                raise ValueError(str(exc)) from None
+        return value
+
+    @field_validator("camera_policy")
+    @classmethod
+    def _check_camera_policy(cls, value: dict[str, float]) -> dict[str, float]:
+        from app.policy import policy_from_json
+
+        try:
+            policy_from_json(value, where="camera_policy")
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
         return value
 
     @field_validator("driver")

@@ -185,9 +185,16 @@ class RigViewer:
         sc.add_icosphere(
             "/room/target/tip", radius=0.05, color=(200, 40, 40), position=(RAY_LENGTH_M, 0.0, 0.0)
         )
+        # The talkers the tracker has followed (one dot each; the one speaking larger and green).
+        self.talker_dots = sc.add_point_cloud(
+            "/room/array/talkers", points=np.zeros((1, 3), dtype=np.float32), colors=(110, 120, 135),
+            point_size=0.16, point_shape="circle", visible=False)
+        self.talkers_shown = 0
+        self.talkers: Any = None  # a callable giving the status' talkers (degrees), set by the service
         self.server.gui.add_markdown(
             "**3DAT rig** — orange: camera frustum · red: target · green: talker estimate "
-            "(fading dots: the last 4 s) · dark green: microphones"
+            "(fading dots: the last 4 s) · grey dots: talkers followed (green: speaking) · "
+            "dark green: microphones"
         )
 
     def show(self, frame: dict[str, Any]) -> None:
@@ -233,6 +240,22 @@ class RigViewer:
         self.trail.colors = colors
         self.trail.visible = True
 
+    def show_talkers(self, talkers: list[dict[str, Any]]) -> None:
+        """One dot per talker followed (``azimuth_deg``, ``elevation_deg``, ``speaking``)."""
+        self.talkers_shown = len(talkers)
+        if not talkers:
+            self.talker_dots.visible = False
+            return
+        az = np.radians([t["azimuth_deg"] for t in talkers])
+        el = np.radians([t.get("elevation_deg") or 0.0 for t in talkers])
+        pts = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)],
+                       axis=1) * (RAY_LENGTH_M + 0.3)
+        colors = np.array([(20, 170, 70) if t["speaking"] else (110, 120, 135) for t in talkers],
+                          dtype=np.uint8)
+        self.talker_dots.points = pts.astype(np.float32)
+        self.talker_dots.colors = colors
+        self.talker_dots.visible = True
+
     def scene_state(self) -> dict[str, Any]:
         """What the 3D scene shows now, read back from the viser handles (degrees)."""
         return {
@@ -243,6 +266,7 @@ class RigViewer:
             "tilt_deg": round(-math.degrees(angle_about_y(self.tilt_frame.wxyz)), 3),
             "estimate_visible": bool(self.estimate_frame.visible),
             "trail_points": len(self._trail),
+            "talkers_shown": self.talkers_shown,
             "clients": len(self.server.get_clients()),
             "share_url_enabled": self.share_enabled,
         }
@@ -253,7 +277,15 @@ class RigViewer:
 
     async def _follow(self, hub: Any, period_s: float) -> None:
         last = None
+        next_talkers = 0.0
         while True:
+            now = asyncio.get_running_loop().time()
+            if self.talkers is not None and now >= next_talkers:  # twice a second is plenty
+                next_talkers = now + 0.5
+                try:
+                    self.show_talkers(self.talkers())
+                except Exception:
+                    log.exception("drawing the talkers in the 3D view failed")
             frame = hub.latest_frame
             if frame is not None and frame is not last:
                 try:

@@ -3,8 +3,9 @@
 TrackerError            root of everything the engine raises on purpose
 ├── ConfigError         bad configuration: unknown effect or parameter, out-of-bounds value,
 │   │                   unstable gains (also a ValueError)
-│   └── ModelRefused    a model offered to a controller does not predict the axis's recent
-│                       motion (``figures`` holds the check's numbers)
+│   ├── ModelRefused    a model offered to a controller does not predict the axis's recent
+│   │                   motion (``figures`` holds the check's numbers)
+│   └── OutOfRange      a named setting outside its bounds (``name``, ``low``, ``high``, ``unit``)
 ├── DataError           bad measurement or audio data: missing column, NaN, uneven sampling
 │                       (also a ValueError); the message names the line or column
 ├── DriverFault         a motor or audio driver failed or refused (device missing, fault latched)
@@ -36,6 +37,15 @@ class ModelRefused(ConfigError):
     def __init__(self, message: str, figures: Mapping[str, object]) -> None:
         super().__init__(message)
         self.figures = dict(figures)
+
+
+class OutOfRange(ConfigError):
+    """A named setting outside its bounds: ``name``, ``value``, ``low``, ``high``, ``unit``."""
+
+    def __init__(self, message: str, name: str, value: object, low: float, high: float,
+                 unit: str) -> None:
+        super().__init__(message)
+        self.name, self.value, self.low, self.high, self.unit = name, value, low, high, unit
 
 
 class DataError(TrackerError, ValueError):

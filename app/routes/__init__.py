@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from app.routes import (
+    audio,
     audit,
     gains,
     jobs,
@@ -20,6 +21,7 @@ from app.routes import (
 ALL_ROUTERS = (
     status.router,
     tracking.router,
+    audio.router,
     pointing.router,
     presets.router,
     gains.router,

@@ -12,6 +12,7 @@ from fastapi.responses import JSONResponse
 from app import rig
 from app.auth import Engineer, Viewer
 from app.health import health_of
+from app.routes.audio import talkers_of
 from app.schemas import LoopOut, StatusOut
 from app.service import Service, Svc
 
@@ -35,6 +36,8 @@ def status_of(svc: Service) -> StatusOut:
         limits_deg=svc.limits_deg(),
         telemetry_clients=svc.hub.clients,
         audio=audio_state(svc),
+        audio_capture=capture_of(svc),
+        talkers=talkers_of(svc),
         viewer=svc.viewer.scene_state() if svc.viewer is not None else None,
         driver=rig.driver_state(svc.engine),
         loop=loop_of(svc),
@@ -82,8 +85,20 @@ async def health(svc: Svc) -> JSONResponse:
 
 
 def audio_state(svc: Service) -> str:
-    """ "off", "ready", "preparing ...", or why audio is unavailable."""
+    """ "off", "ready", "preparing ...", why audio is unavailable, or live capture's fault."""
+    capture = capture_of(svc)
+    if capture is not None and capture["state"] == "fault":
+        retry = capture.get("retry_in_s")
+        again = f"; next try in {retry:.1f} s" if retry is not None else ""
+        return f"live capture fault: {capture['fault']}{again}"
     return str(svc.audio_note or (getattr(svc.audio, "note", "on") if svc.audio is not None else "off"))
+
+
+def capture_of(svc: Service) -> dict[str, Any] | None:
+    """Live capture's status (None for other inputs)."""
+    state = getattr(svc.audio, "capture_state", None)
+    out: dict[str, Any] | None = state() if callable(state) else None
+    return out
 
 
 @router.post(

@@ -2,12 +2,13 @@
 import { $, forgetKey, get, savedKey, storeKey, toast } from "./api.js";
 import * as live from "./live.js";
 import * as tuning from "./tuning.js";
+import * as audio from "./audio.js";
 import * as workbench from "./workbench.js";
 import * as friction from "./friction.js";
 import * as practice from "./practice.js";
 import * as keys from "./keys.js";
 
-const pages = { live, tuning, workbench, friction, practice, keys };
+const pages = { live, tuning, audio, workbench, friction, practice, keys };
 const started = new Set();
 const ROLE_RANK = { viewer: 1, operator: 2, engineer: 3, admin: 4 };
 export const session = { name: "", role: "viewer", can: (r) => ROLE_RANK[session.role] >= ROLE_RANK[r] };

@@ -1,6 +1,7 @@
 // Live page: telemetry plots, status, tracking, click-to-point, jog pad, presets, 3D view.
 import { $, del, esc, fmt, get, post, put, savedKey, toast } from "./api.js";
 import { C, line, makeChart, minSpan, setData, watchSize } from "./charts.js";
+import { describeCapture } from "./audio.js";
 
 const WINDOW_S = 10;
 const MAX_POINTS = 4000;
@@ -116,7 +117,13 @@ async function refreshStatus() {
     limits = s.limits_deg;
     $("mode").textContent = s.mode;
     $("talker").textContent = s.active_talker || "–";
-    $("audio").textContent = s.audio === "ready" ? "simulated meeting (room model → localizer → talker tracker)" : s.audio;
+    const cap = s.audio_capture;
+    $("audio").textContent = cap ? describeCapture(cap) : s.audio === "ready" ? "simulated meeting (room model → localizer → talker tracker)" : s.audio;
+    $("audio").style.color = cap && cap.state === "fault" ? "var(--bad)" : "";
+    const talkers = s.talkers || [];
+    const now = talkers.find((t) => t.speaking);
+    $("talkers").textContent = talkers.length ? `${talkers.length} followed · ` + (now ? `talker ${now.talker_id + 1} at ${fmt(now.azimuth_deg, 0)}° speaking` : "nobody speaking")
+      + " · " + talkers.map((t) => `${t.talker_id + 1}: ${fmt(t.azimuth_deg, 0)}°`).join(", ") : "–";
     $("driver").textContent = describeDriver(s.driver);
     $("faults").firstChild.textContent = s.faults.length ? `${s.faults.join(", ")} ` : "none ";
     $("faults").style.color = s.faults.length ? "var(--bad)" : "";

@@ -62,13 +62,13 @@ class _Engine:
 
 def test_live_without_portaudio_says_why_and_does_not_crash(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    import tracker.audio.sources as sources
+    import tracker.audio.capture as capture
 
     def missing() -> None:
         raise DriverFault("live capture needs the PortAudio library (not found); "
                           "install it with: apt-get install libportaudio2")
 
-    monkeypatch.setattr(sources, "_sounddevice", missing)
+    monkeypatch.setattr(capture, "sounddevice_backend", missing)
     engine = _Engine()
     stream = start_meeting_source(engine, tmp_path, audio_input="live")
     assert "live capture unavailable" in stream.note and "PortAudio" in stream.note
@@ -103,6 +103,12 @@ def test_the_engine_follows_a_wav_streamed_on_its_clock(tmp_path: Path) -> None:
     stream = start_meeting_source(engine, tmp_path, audio_input=f"wav:{path}")
     assert isinstance(stream, AudioStream) and stream.note == "ready"
     seen: dict[float, float] = {}
+    # The stream counts engine time from when its thread starts: let it start before the engine
+    # moves (on a busy machine it started at 0.25 s and this test then waited 28 × 20 s).
+    deadline = time.monotonic() + 20
+    while stream.locator is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.2)
     try:
         for _ in range(28):  # 7 s of engine time (the WAV is 7.5 s) in 0.25 s steps
             asyncio.run(engine.run(realtime=False, duration_s=0.25))
@@ -269,7 +275,7 @@ def test_a_head_mounted_array_steers_the_camera_in_the_base_frame(
     pan/tilt fed to the stream keep her at 35° in the base frame (the map tracker, each window's
     map turned with the head). Without them the loop would settle at 17.5° (the head-frame
     estimate 35° - pan taken as the target)."""
-    import tracker.audio.sources as sources
+    import tracker.audio.capture as capture
     from tracker.audio.array import load_array
     from tracker.drivers.sim import SimDriver
     from tracker.engine import Engine
@@ -279,12 +285,12 @@ def test_a_head_mounted_array_steers_the_camera_in_the_base_frame(
     engine.set_tracking(True)
     captures: list[_HeadMountedCapture] = []
 
-    def live(n_channels: int, fs_hz: int, device: object) -> _HeadMountedCapture:
-        assert n_channels == 4 and fs_hz == FS_HZ
+    def live(n_mics: int, settings: capture.CaptureSettings) -> _HeadMountedCapture:
+        assert n_mics == 4 and settings.pipeline_rate_hz == FS_HZ
         captures.append(_HeadMountedCapture(engine, array, 35.0, 7.0))
         return captures[-1]
 
-    monkeypatch.setattr(sources, "LiveSource", live)
+    monkeypatch.setattr(capture, "LiveCapture", live)
     stream = start_meeting_source(engine, tmp_path, audio_input="live", array_file=array.name)
     assert stream.note == "ready", stream.note
     pans: dict[float, float] = {}

@@ -268,7 +268,7 @@ def test_a_second_compare_by_the_same_key_is_429_with_retry_after(tight: Rig) ->
     again = tight.client.post(
         f"{API}/workbench/measurements/{up.json()['id']}/compare", headers=tight.h("viewer"), json={}
     )
-    assert again.status_code == 200
+    assert again.status_code == 200, again.text
 
 
 def test_bad_keys_from_one_address_get_429_with_retry_after(tight: Rig) -> None:

@@ -57,7 +57,8 @@ def test_the_control_loop_is_visible_ticks_gaps_and_lateness(mrig: Rig) -> None:
     gaps = value(second, "tracker_control_tick_gap_seconds_count")
     assert ticks - 2 <= gaps <= ticks  # one gap per tick after the first (scraped a moment apart)
     # the gaps span first to last tick: no less than the grid's periods (more after a restart)
-    assert value(second, "tracker_control_tick_gap_seconds_sum") >= (gaps - 1) * 0.01
+    # (catch-up ticks after an overrun come closer than a period: a loaded machine shows it)
+    assert value(second, "tracker_control_tick_gap_seconds_sum") >= 0.5 * (gaps - 1) * 0.01
     inf = value(second, "tracker_control_tick_gap_seconds_bucket", le="+Inf")
     on_time = value(second, "tracker_control_tick_gap_seconds_bucket", le="0.011")
     assert inf == gaps and on_time >= 0.5 * gaps  # most ticks come one period apart

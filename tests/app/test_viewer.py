@@ -119,3 +119,18 @@ def test_a_head_mounted_array_is_drawn_on_the_head() -> None:
         assert v.mics.name.startswith("/room/pan/tilt/")
     finally:
         v.server.stop()
+
+
+def test_each_talker_followed_is_a_dot_the_speaking_one_green(viewer: RigViewer) -> None:
+    viewer.show_talkers([
+        {"talker_id": 0, "azimuth_deg": 35.0, "elevation_deg": None, "speaking": False},
+        {"talker_id": 1, "azimuth_deg": -40.0, "elevation_deg": 10.0, "speaking": True},
+    ])
+    pts = np.asarray(viewer.talker_dots.points, dtype=float)
+    colors = np.asarray(viewer.talker_dots.colors)
+    assert viewer.talker_dots.visible and viewer.scene_state()["talkers_shown"] == 2
+    assert np.degrees(np.arctan2(pts[:, 1], pts[:, 0])) == pytest.approx([35.0, -40.0], abs=0.1)  # float16
+    assert np.degrees(np.arcsin(pts[1, 2] / np.linalg.norm(pts[1]))) == pytest.approx(10.0, abs=0.1)
+    assert tuple(colors[1]) == (20, 170, 70) and tuple(colors[0]) != tuple(colors[1])
+    viewer.show_talkers([])
+    assert not viewer.talker_dots.visible and viewer.scene_state()["talkers_shown"] == 0

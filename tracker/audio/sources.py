@@ -1,16 +1,17 @@
-"""Audio sources behind one small Protocol: WAV files, simulated rooms and live capture."""
+"""Audio sources behind one small Protocol: WAV files and simulated rooms (live capture:
+:mod:`tracker.audio.capture`)."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.io import wavfile
 
-from tracker.errors import DataError, DriverFault
+from tracker.errors import DataError
 
 if TYPE_CHECKING:  # a room simulation needs scipy.signal and pyroomacoustics: not for WAV files
     from tracker.audio.room import Recording
@@ -106,64 +107,3 @@ class RoomSource:
 
     def close(self) -> None:
         return None
-
-
-def _sounddevice() -> Any:
-    """Import sounddevice on demand; PortAudio problems become a DriverFault."""
-    try:
-        import sounddevice
-    except ImportError as exc:
-        raise DriverFault(
-            "live capture needs the 'sounddevice' package (pip install sounddevice)"
-        ) from exc
-    except OSError as exc:  # sounddevice raises OSError when libportaudio is missing
-        raise DriverFault(
-            f"live capture needs the PortAudio library ({exc}); "
-            "install it with: apt-get install libportaudio2"
-        ) from exc
-    return sounddevice
-
-
-class LiveSource:
-    """Live capture from a sound card through sounddevice (imported only when used).
-
-    Parameters
-    ----------
-    n_channels : int
-        Channels to record; must match the array's microphone count.
-    fs_hz : int
-    device : int or str, optional
-        sounddevice device index or name; the default input device when omitted.
-    """
-
-    def __init__(self, n_channels: int, fs_hz: int = 16000, device: int | str | None = None
-                 ) -> None:
-        sd = _sounddevice()
-        self.fs_hz = int(fs_hz)
-        self.n_channels = int(n_channels)
-        self.overflows = 0  # blocks read after PortAudio lost input (the reader fell behind)
-        try:
-            sd.check_input_settings(device=device, channels=n_channels, samplerate=fs_hz)
-            self._stream = sd.InputStream(device=device, channels=n_channels, samplerate=fs_hz,
-                                          dtype="float32")
-            self._stream.start()
-        except Exception as exc:  # PortAudioError or ValueError from a bad device/setting
-            raise DriverFault(
-                f"cannot open audio input device {device!r} with {n_channels} channels at "
-                f"{fs_hz} Hz: {exc}"
-            ) from exc
-
-    def blocks(self, block_s: float) -> Iterator[FloatArray]:
-        n = max(1, int(round(block_s * self.fs_hz)))
-        while True:
-            try:
-                data, overflowed = self._stream.read(n)
-            except Exception as exc:
-                raise DriverFault(f"audio capture failed: {exc}") from exc
-            if overflowed:
-                self.overflows += 1
-            yield np.asarray(data, dtype=float).T
-
-    def close(self) -> None:
-        self._stream.stop()
-        self._stream.close()

@@ -35,6 +35,7 @@ import math
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +43,7 @@ from numpy.typing import NDArray
 from tracker.audio.head import MAX_SWEEP_RAD, HeadPoses, frame_to_base, map_grids, window_motion
 from tracker.audio.map_tracking import MapTracker
 from tracker.audio.pipeline import FrameEstimate, Pipeline
+from tracker.audio.policy import CameraPolicy
 from tracker.audio.tracking import TalkerTracker, TrackPoint
 from tracker.audio.vad import SpeechDetector, StreamingSpeechDetector
 from tracker.errors import ConfigError, DataError
@@ -80,6 +82,32 @@ class StreamTarget:
     confidence: float
     speech: bool
     estimate_azimuth_rad: float
+
+
+@dataclass(frozen=True, slots=True)
+class TalkerSeen:
+    """A talker the stream has followed (one per direction the tracker took, ids from 0).
+
+    Attributes
+    ----------
+    talker_id : the id :attr:`StreamTarget.talker_id` gives her shots.
+    azimuth_rad, elevation_rad : where she was last (base frame; elevation None if unknown).
+    first_s, last_spoken_s : stream times of her first frame and her last speech frame.
+    speaking_s : how long she has talked (speech frames pointing at her while she was the
+        talker).
+    speaking : she is the current talker and spoke within the last ``SPEAKING_HOLD_S``.
+    """
+
+    talker_id: int
+    azimuth_rad: float
+    elevation_rad: float | None
+    first_s: float
+    last_spoken_s: float
+    speaking_s: float
+    speaking: bool
+
+
+SPEAKING_HOLD_S = 0.5  # a talker's pause shorter than this still shows her as speaking
 
 
 class StreamingLocator:
@@ -128,9 +156,12 @@ class StreamingLocator:
         self._buf = np.zeros((pipeline.array.n_mics, 0))
         self._buf_start = 0  # absolute sample index of self._buf[:, 0]
         self._next = 0  # index of the next frame to compute
-        self._talkers: list[float] = []
+        self._talkers: list[list[Any]] = []  # per id: [azimuth, elevation, first, last spoken, total]
+        self._current_id: int | None = None
+        self._last_t_s = -math.inf
         self._lock = threading.Lock()
         self._latest: StreamTarget | None = None
+        self._pending_policy: CameraPolicy | None = None
         self.frames: list[FrameEstimate] = []
         self.keep_frames = False
         self.compute_s = 0.0  # CPU (thread) time spent in push/finish, s
@@ -149,6 +180,33 @@ class StreamingLocator:
         """The most recent target, or None before the first frame."""
         with self._lock:
             return self._latest
+
+    @property
+    def policy(self) -> CameraPolicy:
+        """The camera-operator policy in force (or about to be: see :meth:`set_policy`)."""
+        with self._lock:
+            pending = self._pending_policy
+        if pending is not None:
+            return pending
+        return CameraPolicy.of(self.pipeline.map_tracking if self._map_tracker is not None
+                               else self.pipeline.tracking)
+
+    def set_policy(self, policy: CameraPolicy) -> None:
+        """Use ``policy`` from the next frame on (thread-safe; the tracker keeps its state:
+        its talkers, seats and current shot)."""
+        with self._lock:
+            self._pending_policy = policy
+
+    def _apply_pending_policy(self) -> None:
+        with self._lock:
+            policy, self._pending_policy = self._pending_policy, None
+        if policy is None:
+            return
+        self.pipeline.tracking = policy.apply(self.pipeline.tracking)
+        self.pipeline.map_tracking = policy.apply(self.pipeline.map_tracking)
+        self._tracker.settings = self.pipeline.tracking
+        if self._map_tracker is not None:
+            self._map_tracker.settings = self.pipeline.map_tracking
 
     def push(self, block: FloatArray, head_pan_rad: float | None = None,
              head_tilt_rad: float | None = None) -> list[StreamTarget]:
@@ -204,6 +262,7 @@ class StreamingLocator:
         return out
 
     def _frames(self, ready: list[int], total: int) -> list[StreamTarget]:
+        self._apply_pending_policy()
         fs = self.fs_hz
         starts = np.asarray(ready, dtype=np.int64) * self._n_hop
         speech = self._detector.windows_are_speech(self._speech.features(), starts / fs,
@@ -248,9 +307,13 @@ class StreamingLocator:
                                   f.speech, f.fine_azimuth_rad, self._lag_s)
 
     def _target(self, f: FrameEstimate, p: TrackPoint, ready_s: float) -> StreamTarget:
-        talker_id = None
-        if p.shot == "talker" and p.talker_azimuth_rad is not None:
-            talker_id = self._talker_id(p.talker_azimuth_rad)
+        current = None
+        if p.talker_azimuth_rad is not None:  # she is still followed during a wide shot
+            current = self._talker_id(p.talker_azimuth_rad)
+            self._note_talker(current, f, p.elevation_rad)
+        with self._lock:
+            self._current_id, self._last_t_s = current, f.t_s
+        talker_id = current if p.shot == "talker" else None
         az = p.azimuth_rad if p.shot != "none" else math.nan
         return StreamTarget(f.t_s, f.end_s, ready_s, float(az), p.elevation_rad, p.shot,
                             talker_id, p.talker_azimuth_rad, float(f.confidence), f.speech,
@@ -258,14 +321,40 @@ class StreamingLocator:
 
     def _talker_id(self, azimuth_rad: float) -> int:
         """The nearest known talker direction within the separation, else a new talker."""
-        if self._talkers:
-            diffs = np.abs(np.angle(np.exp(1j * (np.asarray(self._talkers) - azimuth_rad))))
-            i = int(np.argmin(diffs))
-            if diffs[i] <= self._separation_rad:
-                self._talkers[i] = float(azimuth_rad)  # follow a walker
-                return i
-        self._talkers.append(float(azimuth_rad))
-        return len(self._talkers) - 1
+        with self._lock:
+            if self._talkers:
+                known = np.asarray([t[0] for t in self._talkers])
+                diffs = np.abs(np.angle(np.exp(1j * (known - azimuth_rad))))
+                i = int(np.argmin(diffs))
+                if diffs[i] <= self._separation_rad:
+                    self._talkers[i][0] = float(azimuth_rad)  # follow a walker
+                    return i
+            self._talkers.append([float(azimuth_rad), None, math.nan, -math.inf, 0.0])
+            return len(self._talkers) - 1
+
+    def _note_talker(self, talker_id: int, f: FrameEstimate, elevation_rad: float | None) -> None:
+        """Her elevation, first frame, last speech and talk time after this frame (a speech
+        frame counts for her when its estimate points at her: the next talker's first words,
+        before the tracker takes her, are not the current one's)."""
+        hop_s = self._n_hop / self.fs_hz
+        with self._lock:
+            entry = self._talkers[talker_id]
+            if elevation_rad is not None:
+                entry[1] = float(elevation_rad)
+            if not math.isfinite(entry[2]):
+                entry[2] = f.t_s
+            off_rad = abs(math.remainder(float(f.azimuth_rad) - entry[0], 2.0 * math.pi))
+            if f.speech and off_rad <= self._separation_rad:
+                entry[3] = f.t_s
+                entry[4] += hop_s
+
+    def talkers(self) -> list[TalkerSeen]:
+        """The talkers followed so far (thread-safe), by id."""
+        with self._lock:
+            current, now = self._current_id, self._last_t_s
+            return [TalkerSeen(i, az, el, first, last, total,
+                               i == current and now - last <= SPEAKING_HOLD_S + 1e-9)
+                    for i, (az, el, first, last, total) in enumerate(self._talkers)]
 
     def _trim(self) -> None:
         """Forget the audio, STFT frames and speech measurements no later window needs."""

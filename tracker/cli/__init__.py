@@ -32,6 +32,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "audio": ("tracker.cli.audio", "locate talkers in multichannel audio"),
     "camera-emulator": ("tracker.cli.camera", "emulate a PTZ camera (VISCA over IP on UDP, or raw "
                         "VISCA on TCP) on 127.0.0.1"),
+    "camera": ("tracker.cli.camera_jobs", "PTZ camera jobs: speed-table identification (speed-id)"),
     "motor-emulator": ("tracker.cli.motor",
                        "emulate the DC rig's serial motor controller on a pseudo-terminal"),
 }

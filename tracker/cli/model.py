@@ -23,9 +23,11 @@ from typing import Any
 
 import numpy as np
 
+from tracker.cli import camera_model
 from tracker.errors import ConfigError, TrackerError
 from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
+from tracker.workbench.camera.log import is_camera_log_file
 from tracker.workbench.compare.compare import DEFAULT_REPLICAS, CompareResult, compare_model
 from tracker.workbench.compare.consistency import ResidualVerdict
 from tracker.workbench.fit.fit import FitResult, fit_model
@@ -238,6 +240,8 @@ def compare_start(meas: Measurement, model: AxisModel, args: argparse.Namespace)
 @_guard
 def run_compare(args: argparse.Namespace) -> int:
     """``tracker model compare``."""
+    if is_camera_log_file(args.data):  # dispatch: a camera log goes to the camera workbench
+        return camera_model.run(args, "compare")
     meas = read_log(args.data)
     model, origin = compare_start(meas, model_from_args(args), args)
     res = compare_model(meas, model, horizon_s=args.horizon, mode=args.mode, replicas=args.replicas)
@@ -255,6 +259,8 @@ def run_compare(args: argparse.Namespace) -> int:
 @_guard
 def run_fit(args: argparse.Namespace) -> int:
     """``tracker model fit``."""
+    if is_camera_log_file(args.data):
+        return camera_model.run(args, "fit")
     meas = read_log(args.data)
     model = model_from_args(args)
     free = _effects(args.free) or None
@@ -351,6 +357,8 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
 
     @_guard
     def run_diagnose(args: argparse.Namespace) -> int:
+        if is_camera_log_file(args.data):
+            return camera_model.run(args, "diagnose")
         meas = read_log(args.data)
         model = model_from_args(args)
         d = diagnose(meas, model, horizon_s=args.horizon)

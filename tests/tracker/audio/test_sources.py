@@ -8,12 +8,14 @@ import sys
 import numpy as np
 import pytest
 
-from tracker.audio.sources import LiveSource, WavSource, read_wav, write_wav
+from tracker.audio.capture import LiveCapture
+from tracker.audio.sources import WavSource, read_wav, write_wav
 from tracker.errors import DriverFault
 
 
 def test_importing_audio_does_not_import_sounddevice():
-    code = ("import sys, tracker.audio.sources, tracker.audio.pipeline, tracker.cli.audio; "
+    code = ("import sys, tracker.audio.sources, tracker.audio.capture, tracker.audio.pipeline, "
+            "tracker.cli.audio; "
             "print('sounddevice' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
@@ -31,7 +33,7 @@ def _portaudio_usable() -> bool:
 @pytest.mark.skipif(_portaudio_usable(), reason="a real PortAudio device exists here")
 def test_live_capture_without_portaudio_or_device_is_a_driver_fault():
     with pytest.raises(DriverFault, match="PortAudio|audio input device|sounddevice"):
-        LiveSource(n_channels=4)
+        LiveCapture(4)
 
 
 def test_wav_roundtrip_and_blocks(tmp_path):

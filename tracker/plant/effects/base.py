@@ -91,6 +91,10 @@ class Effect:
         for a torque not linear in a parameter: the values to search it on, by parameter short
         name, e.g. ``{"centre": (-1.0, -0.5, 0.0, 0.5, 1.0)}``. Parameters linear in the torque
         need none: the regression finds them in one step.
+    ``negligible``
+        ``negligible(params)``: why fitted values, though detectable, are too small to be a
+        missing effect (a refinement of the base model's shape), or None when they matter. The
+        diagnosis then reports the effect as "significant but small", not as the verdict.
     """
 
     name: str
@@ -103,6 +107,7 @@ class Effect:
     experiment: str | None = None
     evidence: str | EvidenceFn | None = None
     search: Mapping[str, Sequence[float]] = field(default_factory=dict)
+    negligible: Callable[[Mapping[str, float]], str | None] | None = None
 
     def full_names(self) -> tuple[str, ...]:
         """Parameter names qualified by the effect name, e.g. ``("gravity.torque", ...)``."""

@@ -14,6 +14,23 @@ def torque_nm(params: Mapping[str, float], theta: FloatArray, omega: FloatArray)
     return np.asarray(extra * np.exp(-((w / params["stiction.velocity"]) ** 2)) * np.sign(w), dtype=float)
 
 
+# Below this excess of break-away over Coulomb the curve is the kinetic friction's Stribeck dip
+# (a few per cent is ordinary for lubricated gears), not stick-slip that compensation must treat.
+SMALL_EXCESS_RATIO = 0.1
+
+
+def negligible(params: Mapping[str, float]) -> str | None:
+    """Why a fitted break-away is too close to Coulomb to count as missing stiction, or None."""
+    fc = params["coulomb.torque"]
+    excess = params["stiction.static_torque"] - fc
+    if fc > 0 and excess < SMALL_EXCESS_RATIO * fc:
+        return (
+            f"break-away only {100 * excess / fc:.1f} % above Coulomb (under "
+            f"{100 * SMALL_EXCESS_RATIO:.0f} %): a Stribeck dip of the kinetic friction, not stick-slip"
+        )
+    return None
+
+
 EFFECT = Effect(
     name="stiction",
     kind="torque",
@@ -32,4 +49,5 @@ EFFECT = Effect(
         "friction-ID sweep (tracker friction-id): break-away voltage on a slow ramp above the "
         "Coulomb intercept shows stiction (a delay does not change it)"
     ),
+    negligible=negligible,
 )

@@ -218,8 +218,13 @@ def compare_model(
     max_lag = int(min(max(5, round(max(0.1, 2 * k * dt) / dt)), max(5, meas.n // 4)))
     verdict = None
     if replicas > 0 and mode == "k_step":
-        floor = residual_floor(meas, model, est, k, max_lag, replicas=replicas)
-        verdict = judge_residual(resid, est, k, floor)
+        try:
+            floor = residual_floor(meas, model, est, k, max_lag, replicas=replicas)
+        except ConfigError:
+            # A log no physical axis could make (the replicas' refit leaves the parameter
+            # bounds): the comparison stands, the residual test has nothing to judge against.
+            floor = None
+        verdict = judge_residual(resid, est, k, floor) if floor is not None else None
     return CompareResult(
         fit_percent=fit_percent(y, y_hat),
         fit_percent_increment=fit_percent(inc_y, inc_hat),

@@ -32,6 +32,7 @@ from tracker.workbench.diagnose.judgement import (
     Judged,
     finding,
     judge_candidate,
+    negligible,
     rank,
     reconsider_backlash,
     refine_leaders,
@@ -169,9 +170,9 @@ def diagnose(
     ]
     step(0.7)
     reconsider_backlash(rows, screens, ctx)
-    rank(rows)
+    rank(rows, judge)
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
-    rank(rows)
+    rank(rows, judge)
 
     significant = [r.effect for r in rows if r.significant]
     candidates = [_candidate(r, ctx, significant) for r in rows]
@@ -179,6 +180,8 @@ def diagnose(
         candidates.append(_quantization_candidate(ctx, current.fit_percent, base_score))
     verdict = candidates[0].effect if candidates and candidates[0].significant else None
     notes = notes_for(candidates, ctx, verdict)
+    small = [(r.effect, negligible(r.effect, r.model)) for r in rows if r.passed and not r.significant]
+    notes += tuple(f"{effect} is detectable but small: {why}" for effect, why in small if why)
     if base_model is not model and current.sse > FAR_OFF_RATIO * refit_score.sse:
         notes = (
             "the current model's parameters are far from this data: with its base parameters refitted by "

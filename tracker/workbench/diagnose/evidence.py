@@ -16,7 +16,7 @@ from tracker.workbench.diagnose.breakaway import BreakAway
 from tracker.workbench.diagnose.kstep import Comparison
 from tracker.workbench.diagnose.screening import Screen, TorqueDesign
 from tracker.workbench.fit import generic
-from tracker.workbench.measurements.idim import Regression, Signals
+from tracker.workbench.measurements.idim import Regression, Signals, encoder_timing_s
 
 if TYPE_CHECKING:
     from tracker.workbench.diagnose.diagnose import Candidate
@@ -184,6 +184,12 @@ def describe(
             )
         else:
             meaning = ""
+        timing_s = encoder_timing_s(sig.theta_raw_rad, sig.dt_s)
+        if samples >= 0.5 and p["delay.seconds"] < timing_s:
+            meaning += (
+                f" (within the encoder's timing of {1e3 * timing_s:.1f} ms: the typical time between "
+                "its counts while moving, so not resolved as a drive delay)"
+            )
         return (
             f"input–residual alignment is best with the command delayed by {1e3 * p['delay.seconds']:.2f} ms "
             f"= {samples:.2f} samples of {1e3 * sig.dt_s:.3g} ms{meaning}{extra}" + tail

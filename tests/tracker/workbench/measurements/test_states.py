@@ -111,3 +111,16 @@ def test_compiled_functions_take_no_default_arguments() -> None:
             if isinstance(obj, CPUDispatcher):
                 params = inspect.signature(obj.py_func).parameters.values()
                 assert all(p.default is inspect.Parameter.empty for p in params), f"{module.__name__}.{name}"
+
+
+def test_the_encoder_times_the_response_to_the_time_between_its_counts() -> None:
+    """A constant speed through a 500-count encoder at 2 kHz: a count every q/ω seconds."""
+    from tracker.workbench.measurements.idim import encoder_timing_s
+
+    dt, q, omega = 5e-4, 2 * np.pi / 500, 0.5
+    t = np.arange(20000) * dt
+    theta = np.floor(omega * t / q) * q
+    assert encoder_timing_s(theta, dt) == pytest.approx(q / omega, rel=0.05)
+    # a stop longer than 0.1 s between counts is not motion
+    stopped = np.concatenate([theta, np.full(4000, theta[-1]), theta[-1] + theta])
+    assert encoder_timing_s(stopped, dt) == pytest.approx(q / omega, rel=0.05)
