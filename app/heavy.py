@@ -32,13 +32,15 @@ def fit_summary(
     from tracker.workbench.compare.compare import DEFAULT_REPLICAS
 
     cmp = compare_model(meas, model, replicas=DEFAULT_REPLICAS)
-    out = {
+    out: dict[str, Any] = {
         "fit_percent": cmp.fit_percent,
         "fit_percent_increment": cmp.fit_percent_increment,
         "rms_deg": cmp.rms_deg,
         "horizon_s": cmp.horizon_s,
-        "budget": error_budget(meas, model, earlier or [], change, compared=cmp).to_dict(),
     }
+    budget = error_budget(meas, model, earlier or [], change, compared=cmp)
+    if budget is not None:
+        out["budget"] = budget.to_dict()
     out.update(extra or {})
     return plain(out)
 

@@ -123,7 +123,7 @@ def change_from(history: VersionHistory, model: AxisModel) -> str:
 
 def budget_for(
     meas: Measurement, history: VersionHistory, model: AxisModel, change: str, compared: CompareResult | None
-) -> ErrorBudget:
+) -> ErrorBudget | None:
     """The error budget of a new version after ``history``."""
     earlier = [(v.change, v.budget_rms_deg) for v in history.versions]
     return error_budget(meas, model, earlier, change, compared=compared)

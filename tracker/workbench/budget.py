@@ -155,19 +155,22 @@ def error_budget(
     horizon_s: float | None = None,
     replicas: int = DEFAULT_REPLICAS,
     compared: CompareResult | None = None,
-) -> ErrorBudget:
+) -> ErrorBudget | None:
     """The budget of ``model`` on ``meas``.
 
     ``earlier``: (change, budget RMS deg) of the versions before this one, oldest first (the
     first one's change is not used); ``change`` is what made this version. ``compared``: the
     k-step comparison of ``model`` on ``meas`` with its residual test, when already made.
     Costs a residual test (``replicas`` refitted replicas) and two sensor-only replicas.
+    None when the residual test has nothing to judge against (a log no physical axis could
+    make: the replicas' refit leaves the parameter bounds).
     """
     res = compared
     if res is None or res.verdict is None:
         res = compare_model(meas, model, horizon_s=horizon_s, replicas=max(replicas, 2))
     v = res.verdict
-    assert v is not None  # k-step with replicas
+    if v is None:
+        return None
     k = horizon_samples(res.horizon_s, meas.dt_s, meas.n)
     est = with_load_observer(estimate_states(meas, model), model, meas)
     sensor = residual_floor(meas, model, est, k, 5, replicas=2, refit=False, disturbance=False, seed=7)

@@ -46,7 +46,9 @@ def test_the_parts_add_up_and_a_right_model_ends_at_the_floor() -> None:
     base = fit_model(meas, AxisModel.for_axis("pan")).model
     right = fit_model(meas, AxisModel.for_axis("pan", ("offset",))).model
     b1 = error_budget(meas, base, replicas=3)
+    assert b1 is not None
     b2 = error_budget(meas, right, [("base", b1.rms_deg)], "+offset", replicas=3)
+    assert b2 is not None
     assert not b1.at_floor and b2.at_floor and b2.consistent
     assert b1.rms_deg**2 == pytest.approx(b1.floor_deg**2 + b1.left_deg**2, rel=1e-9)
     assert b1.floor_deg**2 == pytest.approx(
