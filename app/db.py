@@ -17,7 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-SCHEMA = """
+from tracker.workbench.version_db import TABLES as VERSION_TABLES
+
+SCHEMA = (
+    """
 CREATE TABLE IF NOT EXISTS api_keys (
     id INTEGER PRIMARY KEY,
     name TEXT NOT NULL,
@@ -31,24 +34,6 @@ CREATE TABLE IF NOT EXISTS presets (
     name TEXT PRIMARY KEY,
     pan_deg REAL NOT NULL,
     tilt_deg REAL NOT NULL,
-    created_s REAL NOT NULL
-);
-CREATE TABLE IF NOT EXISTS measurements (
-    id INTEGER PRIMARY KEY,
-    name TEXT NOT NULL,
-    axis TEXT NOT NULL,
-    csv TEXT NOT NULL,
-    n INTEGER NOT NULL,
-    dt_s REAL NOT NULL,
-    created_s REAL NOT NULL
-);
-CREATE TABLE IF NOT EXISTS model_versions (
-    id INTEGER PRIMARY KEY,
-    measurement_id INTEGER NOT NULL REFERENCES measurements(id) ON DELETE CASCADE,
-    parent_id INTEGER,
-    label TEXT NOT NULL,
-    model TEXT NOT NULL,
-    fit TEXT NOT NULL,
     created_s REAL NOT NULL
 );
 CREATE TABLE IF NOT EXISTS jobs (
@@ -67,6 +52,8 @@ CREATE TABLE IF NOT EXISTS kv (
     value TEXT NOT NULL
 );
 """
+    + VERSION_TABLES  # measurements and model_versions: shared with `tracker model --db`
+)
 
 
 @dataclass(frozen=True, slots=True)

@@ -18,15 +18,29 @@ from tracker.workbench.compare.compare import compare_model
 from tracker.workbench.measurements.data import Measurement, parse_log
 
 
-def fit_summary(meas: Measurement, model: AxisModel, extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The figures a version keeps: compare fit, RMS error, and the fitter's output when given."""
-    cmp = compare_model(meas, model)
-    out = {
+def fit_summary(
+    meas: Measurement,
+    model: AxisModel,
+    extra: dict[str, Any] | None = None,
+    earlier: list[tuple[str, float]] | None = None,
+    change: str = "base",
+) -> dict[str, Any]:
+    """The figures a version keeps: compare fit, RMS error, its error budget after the versions
+    ``earlier`` ((label, budget RMS deg), oldest first; tracker/workbench/budget.py), and the
+    fitter's output when given."""
+    from tracker.workbench.budget import error_budget
+    from tracker.workbench.compare.compare import DEFAULT_REPLICAS
+
+    cmp = compare_model(meas, model, replicas=DEFAULT_REPLICAS)
+    out: dict[str, Any] = {
         "fit_percent": cmp.fit_percent,
         "fit_percent_increment": cmp.fit_percent_increment,
         "rms_deg": cmp.rms_deg,
         "horizon_s": cmp.horizon_s,
     }
+    budget = error_budget(meas, model, earlier or [], change, compared=cmp)
+    if budget is not None:
+        out["budget"] = budget.to_dict()
     out.update(extra or {})
     return plain(out)
 
@@ -118,9 +132,12 @@ def refit(
     model_json: dict[str, Any],
     free: list[str] | None = None,
     add_effect: str | None = None,
+    change: str = "refit",
+    earlier: list[tuple[str, float]] | None = None,
 ) -> dict[str, Any]:
     """Refit a version's parameters (``free`` only, when given), or add ``add_effect`` and refit
-    every parameter (K fixed): ``{"model", "fit"}`` of the new version."""
+    every parameter (K fixed): ``{"model", "fit"}`` of the new version (made by ``change``), its error
+    budget after ``earlier``."""
     from tracker.workbench.fit.fit import fit_model
 
     meas = parse_log(text, label)
@@ -129,7 +146,8 @@ def refit(
         get_effect(add_effect)
         model = model.with_effect(add_effect)
     res = fit_model(meas, model, free=free) if free else fit_model(meas, model)
-    return {"model": model_to_json(res.model, axis), "fit": fit_summary(meas, res.model, fitter_extra(res))}
+    fit = fit_summary(meas, res.model, fitter_extra(res), earlier, change)
+    return {"model": model_to_json(res.model, axis), "fit": fit}
 
 
 def practice_run(

@@ -10,25 +10,20 @@ import numpy as np
 from app.db import Database
 from app.errors import NotFound
 from tracker.plant.model import AxisModel
+from tracker.workbench.version_db import model_from_record, model_record
 
 MAX_PLOT_POINTS = 1500
 T = TypeVar("T")
 
 
 def model_to_json(model: AxisModel, axis: str) -> dict[str, Any]:
-    """A model as stored in a version."""
-    return {
-        "axis": axis,
-        "gain_nm_per_v": model.gain_nm_per_v,
-        "effects": list(model.effects),
-        "params": {k: float(v) for k, v in model.params.items()},
-    }
+    """A model as stored in a version (the format `tracker model --db` reads and writes)."""
+    return model_record(model, axis)
 
 
 def model_from_json(data: dict[str, Any]) -> AxisModel:
     """The stored model back (parameters as stored, not reset to defaults)."""
-    params = {str(k): float(v) for k, v in data["params"].items()}
-    return AxisModel.create(float(data["gain_nm_per_v"]), params, tuple(data["effects"]), params)
+    return model_from_record(data)
 
 
 def load_version(

@@ -198,12 +198,30 @@ async def _refit_into_version(
         label = f"+{add_effect}"
     else:
         label = "refit" if not model.effects else f"refit ({', '.join(model.effects)})"
+    earlier = _lineage(svc.db.list_versions(mid), v)
     new = await svc.work.run(
-        who, heavy.refit, rec["csv"], rec["name"], rec["axis"], v["model"], free, add_effect
+        who, heavy.refit, rec["csv"], rec["name"], rec["axis"], v["model"], free, add_effect, label, earlier
     )
     vid = svc.db.add_version(mid, v["id"], label, new["model"], new["fit"])
     out = svc.db.get_version(vid)
     assert out is not None
+    return out
+
+
+def _lineage(versions: list[dict[str, Any]], v: dict[str, Any]) -> list[tuple[str, float]]:
+    """(label, RMS the error budget splits) of ``v`` and its ancestors, oldest first: what the
+    new version's error budget counts as explained by each change."""
+    by_id = {x["id"]: x for x in versions}
+    chain: list[dict[str, Any]] = []
+    cur: dict[str, Any] | None = v
+    while cur is not None and len(chain) < len(versions):
+        chain.append(cur)
+        cur = by_id.get(cur["parent_id"])
+    out = []
+    for x in reversed(chain):
+        budget = x["fit"].get("budget") or {}
+        rms = budget.get("rms_deg", x["fit"].get("rms_deg"))
+        out.append((str(x["label"]), float(rms) if rms is not None else math.nan))
     return out
 
 

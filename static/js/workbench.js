@@ -92,6 +92,51 @@ async function loadVersions() {
     <span class="meta">${v.model.effects.length ? esc(v.model.effects.join(", ")) : "base model"}</span></span>
     <span class="meta">${fmt(v.fit.rms_deg, 4)}° · ${fmt(v.fit.fit_percent, 2)} %</span></li>`).join("");
   for (const li of document.querySelectorAll("#version-list li")) li.onclick = () => compare(+li.dataset.vid);
+  showBudget(versions);
+}
+
+// The error budget of each version as a stacked bar (mean squares, % of v1's): the sensor's
+// floor (quantization, noise), the rest of what a right model leaves (load disturbance, refit),
+// what each added effect explained, and what is left for the model (tracker/workbench/budget.py).
+const BUDGET_FIXED = [["quantization", "#adb5bd"], ["noise", "#ced4da"], ["load disturbance", "#dee2e6"]];
+const EFFECT_COLOURS = ["#1c7ed6", "#37b24d", "#7048e8", "#f59f00", "#0ca678", "#d6336c", "#1098ad"];
+function budgetSegments(b) {
+  const sq = (d) => Math.sign(d) * d * d;
+  return [["quantization", sq(b.quantization_deg)], ["noise", sq(b.noise_deg)], ["load disturbance", sq(b.disturbance_deg)],
+    ...b.explained.map((e) => [`explained by ${e.change}`, sq(e.deg)]), ["left", sq(b.left_deg)]];
+}
+function showBudget(list) {
+  const withB = list.map((v, i) => [i + 1, v.fit.budget]).filter(([, b]) => b);
+  const box = $("wb-budget");
+  if (!withB.length) { box.innerHTML = `<div class="muted">No error budget stored for these versions.</div>`; return; }
+  const colours = new Map([...BUDGET_FIXED, ["left", "#e8590c"]]);
+  const total = withB[0][1].rms_deg ** 2 || 1;
+  // every bar against the newest version's floor: the floor belongs to the run (a wrong model's
+  // residual test reads part of its own error as disturbance, so an early floor runs high)
+  const fl = withB[withB.length - 1][1];
+  const rebased = (b) => ({ ...b, quantization_deg: fl.quantization_deg, noise_deg: fl.noise_deg, disturbance_deg: fl.disturbance_deg,
+    left_deg: Math.sqrt(Math.max(b.rms_deg ** 2 - fl.floor_deg ** 2, 0)) });
+  const W = 360, H = 150, pad = 30, bw = Math.min(48, (W - pad) / withB.length * 0.6);
+  let rects = "";
+  withB.forEach(([n, b], i) => {
+    const x = pad + (i + 0.5) * (W - pad) / withB.length - bw / 2;
+    let y = H - 18;
+    for (const [label, ms] of budgetSegments(rebased(b))) {
+      if (!colours.has(label)) colours.set(label, EFFECT_COLOURS[(colours.size - 4) % EFFECT_COLOURS.length]);
+      const h = Math.max(0, ms) / total * (H - 28);
+      y -= h;
+      rects += `<rect x="${x.toFixed(1)}" y="${y.toFixed(1)}" width="${bw.toFixed(1)}" height="${h.toFixed(1)}" fill="${colours.get(label)}" data-part="${esc(label)}"><title>v${n} ${esc(label)}: ${fmt(100 * ms / total, 1)} % of v1's squared error</title></rect>`;
+    }
+    rects += `<text x="${(x + bw / 2).toFixed(1)}" y="${H - 4}" text-anchor="middle" font-size="11" fill="#5f6b7a">v${n}</text>`;
+  });
+  const axis = [0, 50, 100].map((p) => `<text x="${pad - 4}" y="${(H - 18 - p / 100 * (H - 28) + 4).toFixed(1)}" text-anchor="end" font-size="10" fill="#5f6b7a">${p}%</text>`).join("");
+  const last = withB[withB.length - 1][1];
+  const done = last.at_floor
+    ? `<b id="budget-verdict" data-at-floor="yes">At the floor: the error left (${fmt(last.rms_deg, 4)}°) is what a right model leaves on this run (floor ${fmt(last.floor_deg, 4)}°: sensor ${fmt(last.sensor_deg, 3)}°, load disturbance ${fmt(last.disturbance_deg, 3)}°). Done for this run.</b>`
+    : `<b id="budget-verdict" data-at-floor="no">${fmt(last.left_deg, 3)}° RMS left above the floor of ${fmt(last.floor_deg, 4)}°: the model still misses something.</b>`;
+  box.innerHTML = `<svg viewBox="0 0 ${W} ${H}" role="img" aria-label="error budget by version">${axis}${rects}</svg>
+    <div class="legend">${[...colours].map(([k, c]) => `<span><i style="background:${c}"></i>${esc(k)}</span>`).join("")}</div>
+    <div class="done">${done}</div>`;
 }
 
 let shownVersion = null;

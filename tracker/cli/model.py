@@ -4,6 +4,8 @@
 
     tracker model compare DATA.csv --axis pan|tilt [--effects a,b] [--gain K] [--json]
     tracker model fit     DATA.csv --axis pan|tilt [--effects a,b] [--gain K] [--json]
+                          [--workspace DIR | --db PATH] [--plot F.png]
+    tracker model history DATA.csv [--workspace DIR | --db PATH] [--plot F.png]
     tracker model emps-convert DATA_EMPS.mat OUT.csv
 
 Every problem with the input becomes one ``error: ...`` line naming the line, column or option,
@@ -247,6 +249,10 @@ def run_compare(args: argparse.Namespace) -> int:
         print(_json({**res.to_dict(), "parameters": origin, "params": dict(model.params)}))
     else:
         print(format_compare(meas, model, res, origin))
+    if args.plot:
+        from tracker.cli.model_history import write_plot
+
+        write_plot(args.plot, res, [], f"{meas.source}: {origin}")
     return 0
 
 
@@ -264,115 +270,33 @@ def run_fit(args: argparse.Namespace) -> int:
     res = fit_model(
         meas, model, free=free, horizon_s=args.horizon, fit_gain=args.fit_gain, method=args.method
     )
-    kept = record_version(args, meas, res) if not args.no_keep else ""
+    from tracker.cli.model_history import record_version, versions_in, write_plot
+
+    certainty = [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)]
+    compared = None
+    if (args.plot or not args.no_keep) and args.replicas > 0:
+        # the residual test of the fitted model: its error budget and the pictures
+        compared = compare_model(meas, res.model, horizon_s=args.horizon, replicas=args.replicas)
+    extra = {"certainty": certainty, "converged": bool(res.converged), "free": list(res.free)}
+    kept = [] if args.no_keep else record_version(args, meas, res, compared, extra)
     if args.json:
-        out = res.to_dict()
-        out["certainty"] = [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)]
-        print(_json(out))
+        print(_json({**res.to_dict(), "certainty": certainty}))
     else:
         print(format_fit(meas, res))
-        if kept:
-            print(kept)
+        print("\n".join(kept))
+    if args.plot:
+        shown = [] if args.no_keep else versions_in(args, meas)
+        pictured = compared or compare_model(meas, res.model, horizon_s=args.horizon)
+        write_plot(args.plot, pictured, shown, meas.source)
     return 0
-
-
-DEFAULT_WORKSPACE = ".tracker-workspace"
-
-
-def history_name(path: str) -> str:
-    """The name a log's versions are kept under: its file stem and a hash of its bytes."""
-    import hashlib
-    import re
-    from pathlib import Path
-
-    data = Path(path).read_bytes()
-    stem = re.sub(r"[^A-Za-z0-9_.-]", "_", Path(path).stem)[:48] or "log"
-    return f"{stem}-{hashlib.sha1(data).hexdigest()[:8]}"
-
-
-def record_version(args: argparse.Namespace, meas: Measurement, res: FitResult) -> str:
-    """Keep ``res`` as the next version of the log's history in ``--workspace``; a line to print."""
-    from tracker.workbench.versions import ModelVersion, VersionStore
-
-    store = VersionStore(args.workspace)
-    name = history_name(args.data)
-    hist = store.load(name)
-    if hist.versions:
-        before = set(hist.latest.model.effects)
-        now = set(res.model.effects)
-        change = "".join(f"+{e}" for e in res.model.effects if e not in before)
-        change += "".join(f"-{e}" for e in hist.latest.model.effects if e not in now)
-        change = change or "refit"
-    else:
-        change = "base" + "".join(f"+{e}" for e in res.model.effects)
-    number = hist.latest.number + 1 if hist.versions else 1
-    store.save(name, hist.appended(ModelVersion.from_fit(number, change, res, meas.source)))
-    return f"kept as version {number} ({change}) of {name} in {args.workspace}"
-
-
-def format_history(meas: Measurement, versions: list[Any], floor_rad: float | None) -> str:
-    """The error falling version by version, and the error budget of the latest version."""
-    lines = [
-        f"{meas.source}: {len(versions)} version(s)",
-        f"{'v':>3} {'change':<24} {'RMS deg':>11} {'fit %':>9} {'incr. fit %':>11}  explained deg",
-    ]
-    prev = None
-    for v in versions:
-        expl = "" if prev is None else f"{prev - v.rms_deg:+.4g}"
-        lines.append(
-            f"{v.number:>3} {v.change:<24} {v.rms_deg:11.4g} {v.fit_percent:9.3f} "
-            f"{v.fit_percent_increment:11.2f}  {expl}"
-        )
-        prev = v.rms_deg
-    if floor_rad is not None and versions:
-        floor = math.degrees(floor_rad)
-        last = versions[-1].rms_deg
-        lines += [
-            "",
-            "error budget of the latest version (RMS, deg):",
-            f"  floor (sensor + load disturbance, simulated right model): {floor:.4g}",
-        ]
-        for a, b in zip(versions, versions[1:], strict=False):
-            lines.append(f"  explained by {b.change:<26}: {a.rms_deg - b.rms_deg:.4g}")
-        left = last - floor
-        if left <= 0:
-            lines.append(
-                "  left above the floor: none — the error is at the floor: the model is done for this run"
-            )
-        else:
-            lines.append(f"  left above the floor: {left:.4g} ({100 * left / last:.0f} % of the error)")
-    return "\n".join(lines)
 
 
 @_guard
 def run_history(args: argparse.Namespace) -> int:
-    """``tracker model history``."""
-    from tracker.workbench.versions import VersionStore
+    """``tracker model history`` (tracker/cli/model_history.py)."""
+    from tracker.cli.model_history import run_history as history
 
-    meas = read_log(args.data)
-    hist = VersionStore(args.workspace).load(history_name(args.data))
-    if not hist.versions:
-        raise ConfigError(
-            f"{args.data}: no versions in {args.workspace}; make one with "
-            f"`tracker model fit {args.data} --axis pan|tilt --workspace {args.workspace}`"
-        )
-    floor = None
-    if args.replicas > 0:
-        res = compare_model(meas, hist.latest.model, replicas=args.replicas)
-        floor = float(res.verdict.rms_rad.expected) if res.verdict is not None else None
-    vs = list(hist.versions)
-    if args.json:
-        print(
-            _json(
-                {
-                    "versions": [v.to_dict() for v in vs],
-                    "floor_rms_deg": math.degrees(floor) if floor else None,
-                }
-            )
-        )
-    else:
-        print(format_history(meas, vs, floor))
-    return 0
+    return history(args)
 
 
 @_guard
@@ -449,6 +373,7 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add ``tracker model ...`` to the command line."""
     from tracker.cli import command_help
+    from tracker.cli.model_history import add_plot_option, add_store_options
 
     p = subparsers.add_parser("model", help=command_help("model"))
     sub = p.add_subparsers(dest="model_command", metavar="SUBCOMMAND")
@@ -474,6 +399,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         action="store_true",
         help="compare the axis preset's parameters as they are (default: estimate them from the log)",
     )
+    add_plot_option(c)
     c.set_defaults(func=run_compare)
 
     f = sub.add_parser("fit", help="refit every free parameter in physical units")
@@ -486,13 +412,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         default="k_step",
         help="k-step prediction error (default) or linear inverse-dynamics least squares",
     )
-    f.add_argument("--workspace", default=DEFAULT_WORKSPACE, metavar="DIR", help="where versions are kept")
+    add_store_options(f)
     f.add_argument("--no-keep", action="store_true", help="do not keep the fit as a version")
+    f.add_argument(
+        "--replicas",
+        type=int,
+        default=DEFAULT_REPLICAS,
+        metavar="N",
+        help="replicas for the kept version's error budget (0: keep it without one)",
+    )
     f.set_defaults(func=run_fit)
 
     h = sub.add_parser("history", help="the versions kept for a log: the error falling, the error budget")
-    h.add_argument("data", metavar="DATA.csv")
-    h.add_argument("--workspace", default=DEFAULT_WORKSPACE, metavar="DIR", help="where versions are kept")
+    h.add_argument("data", metavar="DATA.csv", nargs="?", default=None)
+    add_store_options(h)
+    h.add_argument(
+        "--measurement", type=int, default=None, metavar="ID", help="with --db: the console's measurement #ID"
+    )
     h.add_argument(
         "--replicas", type=int, default=DEFAULT_REPLICAS, metavar="N", help="replicas for the floor (0: none)"
     )

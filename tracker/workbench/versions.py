@@ -4,7 +4,8 @@ Adding an effect makes version n+1: the structure grows by one effect and *every
 parameter is refitted (the old values are only the start), so the history shows the error
 falling step by step. A :class:`VersionHistory` is an immutable list of versions; a
 :class:`VersionStore` keeps one history per name as JSON files in a folder (written atomically:
-a crash never leaves half a file), so the console and the command line share them.
+a crash never leaves half a file); :mod:`~tracker.workbench.version_db` keeps the same versions
+in the console's database, so the console and the command line share them.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from types import MappingProxyType
 
 from tracker.errors import ConfigError, DataError
 from tracker.plant.model import AxisModel
+from tracker.workbench.budget import ErrorBudget
 from tracker.workbench.fit.fit import FitResult, fit_model
 from tracker.workbench.measurements.data import Measurement
 
@@ -46,10 +48,13 @@ class ModelVersion:
     data_source: str = ""
     horizon_s: float = 0.0
     created_utc: str = ""
+    budget: ErrorBudget | None = None
 
     @classmethod
-    def from_fit(cls, number: int, change: str, fit: FitResult, data_source: str) -> ModelVersion:
-        """A version made from a fit result."""
+    def from_fit(
+        cls, number: int, change: str, fit: FitResult, data_source: str, budget: ErrorBudget | None = None
+    ) -> ModelVersion:
+        """A version made from a fit result (and its error budget, when computed)."""
         return cls(
             number=number,
             model=fit.model,
@@ -61,7 +66,13 @@ class ModelVersion:
             data_source=data_source,
             horizon_s=fit.horizon_s,
             created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
+            budget=budget,
         )
+
+    @property
+    def budget_rms_deg(self) -> float:
+        """The RMS the error budget splits (the residual test's samples), else ``rms_deg``."""
+        return self.budget.rms_deg if self.budget is not None else self.rms_deg
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready."""
@@ -76,6 +87,7 @@ class ModelVersion:
             "data_source": self.data_source,
             "horizon_s": self.horizon_s,
             "created_utc": self.created_utc,
+            "budget": None if self.budget is None else self.budget.to_dict(),
         }
 
     @classmethod
@@ -103,6 +115,7 @@ class ModelVersion:
                 data_source=str(d.get("data_source", "")),
                 horizon_s=_num(d.get("horizon_s")),
                 created_utc=str(d.get("created_utc", "")),
+                budget=ErrorBudget.from_dict(b) if isinstance(b := d.get("budget"), Mapping) else None,
             )
         except (KeyError, TypeError, ValueError, AssertionError) as exc:
             raise DataError(f"{where}: not a model version ({type(exc).__name__}: {exc})") from None

@@ -123,3 +123,30 @@ def test_history_without_versions_is_one_error_line(
 ) -> None:
     assert main(["model", "history", str(log_path), "--workspace", str(tmp_path / "empty")]) == 2
     assert "no versions" in capsys.readouterr().err
+
+
+def test_plot_writes_the_consoles_pictures_and_refuses_other_names(
+    log_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    png = tmp_path / "compare.png"
+    args = ["model", "compare", str(log_path), "--axis", "pan", "--replicas", "2"]
+    assert main([*args, "--plot", str(png)]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG" and png.stat().st_size > 20_000
+    assert main([*args, "--plot", str(tmp_path / "compare.pdf")]) == 2
+    assert "give a .png file name" in capsys.readouterr().err
+    assert main([*args, "--plot", str(tmp_path / "no" / "such" / "x.png")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_the_plotting_module_is_imported_only_for_plot() -> None:
+    """(matplotlib itself comes with python-control; the pictures' module and backend only with --plot)"""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, tracker.cli.model, tracker.cli.model_history; "
+        "print('tracker.workbench.plots' in sys.modules)"
+    )
+    root = Path(__file__).resolve().parents[3]
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root)
+    assert run.stdout.strip() == "False"
