@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.errors import DataError
+from tracker.workbench.measurements.data import check_clock, parse_number, read_text
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -75,16 +75,6 @@ def is_camera_log_file(path: str | Path) -> bool:
         return False
 
 
-def _number(text: str, where: str, column: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise DataError(f"{where}: {column} is {text.strip()!r}, not a number") from None
-    if not math.isfinite(value):
-        raise DataError(f"{where}: {column} is {text.strip()!r}")
-    return value
-
-
 def parse_camera_log(text: str, source: str = "<data>") -> CameraLog:
     """Parse CSV text in the camera log format; DataError naming the line or column."""
     reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
@@ -106,7 +96,7 @@ def parse_camera_log(text: str, source: str = "<data>") -> CameraLog:
             if len(row) < len(header):
                 raise DataError(f"{source}: line {line_no}: {len(row)} fields, header has {len(header)}")
             where = f"{source}: line {line_no}"
-            t, s, th = (_number(row[i], where, c) for i, c in zip(idx, REQUIRED_COLUMNS, strict=True))
+            t, s, th = (parse_number(row[i], where, c) for i, c in zip(idx, REQUIRED_COLUMNS, strict=True))
             if s != round(s) or abs(s) > MAX_STEP:
                 raise DataError(
                     f"{where}: speed_cmd is {row[idx[1]].strip()!r}: a speed step is a whole "
@@ -130,20 +120,7 @@ def validate_camera_log(log: CameraLog) -> CameraLog:
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
             raise DataError(f"{src}: line {bad[0] + 2}: {name} is {arr[bad[0]]!r}")
-    dt = np.diff(log.t_s)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        k = int(bad[0])
-        raise DataError(
-            f"{src}: line {k + 3}: time does not increase (t = {log.t_s[k + 1]:g} after {log.t_s[k]:g})"
-        )
-    med = float(np.median(dt))
-    uneven = np.flatnonzero(np.abs(dt - med) > SAMPLING_TOLERANCE * med)
-    if uneven.size:
-        k = int(uneven[0])
-        raise DataError(
-            f"{src}: line {k + 3}: uneven command period (step {dt[k]:g} s, the log's is {med:g} s)"
-        )
+    check_clock(log.t_s, src, SAMPLING_TOLERANCE, "command period")
     if not np.any(log.step != 0):
         raise DataError(f"{src}: speed_cmd is 0 on every row: the camera was never driven")
     return log
@@ -151,14 +128,7 @@ def validate_camera_log(log: CameraLog) -> CameraLog:
 
 def read_camera_log(path: str | Path) -> CameraLog:
     """Read a camera log from ``path``."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError(f"{p}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{p}: cannot read ({exc})") from None
-    return parse_camera_log(text, str(p))
+    return parse_camera_log(read_text(path), str(path))
 
 
 def format_camera_log(log: CameraLog) -> str:

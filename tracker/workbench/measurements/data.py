@@ -52,7 +52,8 @@ class Measurement:
         )
 
 
-def _parse_float(text: str, where: str, column: str) -> float:
+def parse_number(text: str, where: str, column: str) -> float:
+    """A finite float from a CSV field; DataError naming where and the column otherwise."""
     try:
         value = float(text)
     except ValueError:
@@ -81,7 +82,7 @@ def _read_rows(reader: Iterator[list[str]], source: str) -> list[tuple[float, fl
         if len(row) < len(header):
             raise DataError(f"{source}: line {line_no}: {len(row)} fields, header has {len(header)}")
         t, u, th = (
-            _parse_float(row[i], f"{source}: line {line_no}", c)
+            parse_number(row[i], f"{source}: line {line_no}", c)
             for i, c in zip(idx, REQUIRED_COLUMNS, strict=True)
         )
         rows.append((t, u, th))
@@ -110,33 +111,43 @@ def validate(m: Measurement) -> Measurement:
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
             raise DataError(f"{src}: line {bad[0] + 2}: {name} is {arr[bad[0]]!r}")
-    dt = np.diff(m.t_s)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        k = int(bad[0])
-        raise DataError(
-            f"{src}: line {k + 3}: time does not increase (t = {m.t_s[k + 1]:g} after {m.t_s[k]:g})"
-        )
-    med = float(np.median(dt))
-    uneven = np.flatnonzero(np.abs(dt - med) > SAMPLING_TOLERANCE * med)
-    if uneven.size:
-        k = int(uneven[0])
-        raise DataError(
-            f"{src}: line {k + 3}: uneven sampling (step {dt[k]:g} s, the log's step is {med:g} s)"
-        )
+    check_clock(m.t_s, src, SAMPLING_TOLERANCE, "sampling")
     return m
 
 
 def read_log(path: str | Path) -> Measurement:
     """Read a measurement log from ``path``."""
+    return parse_log(read_text(path), str(path))
+
+
+def read_text(path: str | Path) -> str:
+    """A log file's text; DataError saying why it cannot be read."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        return p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise DataError(f"{p}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise DataError(f"{p}: cannot read ({exc})") from None
-    return parse_log(text, str(p))
+
+
+def check_clock(t_s: FloatArray, src: str, tolerance: float, period: str) -> None:
+    """Time must increase, evenly within ``tolerance`` of the median step (``period`` names the
+    step in the message: "sampling", "command period"); DataError naming the line otherwise."""
+    dt = np.diff(t_s)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        k = int(bad[0])
+        raise DataError(
+            f"{src}: line {k + 3}: time does not increase (t = {t_s[k + 1]:g} after {t_s[k]:g})"
+        )
+    med = float(np.median(dt))
+    uneven = np.flatnonzero(np.abs(dt - med) > tolerance * med)
+    if uneven.size:
+        k = int(uneven[0])
+        raise DataError(
+            f"{src}: line {k + 3}: uneven {period} (step {dt[k]:g} s, the log's step is {med:g} s)"
+        )
 
 
 def format_log(m: Measurement, extra: dict[str, FloatArray] | None = None) -> str:

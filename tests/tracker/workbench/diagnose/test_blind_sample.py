@@ -10,7 +10,9 @@ data, because the twin answered a held command half a sample early and lost time
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from functools import cache
+from typing import Any
 
 import pytest
 
@@ -92,15 +94,27 @@ def test_a_few_percent_stribeck_dip_on_a_clean_log_is_small_not_a_verdict() -> N
     assert any("stiction is detectable but small" in n for n in d.notes)
 
 
-def test_a_lugre_lag_on_top_of_a_one_sample_latency_is_not_a_drive_delay(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
+@pytest.fixture
+def fresh_blind_set() -> Iterator[Any]:
+    """The truth generator's matrix of seed 777 (a fresh blind set) instead of the default one;
+    the matrix is cached, so it is cleared on the way in and out."""
+    import tests.truthgen.matrix as matrix
+
+    saved = matrix.MATRIX_SEED
+    matrix.MATRIX_SEED = 777
+    matrix.build_matrix.cache_clear()
+    try:
+        yield matrix
+    finally:
+        matrix.MATRIX_SEED = saved
+        matrix.build_matrix.cache_clear()
+
+
+def test_a_lugre_lag_on_top_of_a_one_sample_latency_is_not_a_drive_delay(fresh_blind_set: Any) -> None:
     """Regression: a clean 2 kHz open-loop log (fresh blind set, seed 777) with a one-sample
     latency and LuGre friction: its pre-sliding elasticity lags the response, and the delay came
     out 1.69 samples — just over the old 1.5-sample line, so it was the verdict."""
-    import tests.truthgen.matrix as matrix
-
-    monkeypatch.setattr(matrix, "MATRIX_SEED", 777)
+    matrix = fresh_blind_set
     log, truth = matrix.generate_case("clean-018")
     assert truth["hidden"] == [] and truth["friction_law"] == "lugre" and truth["latency_samples"] == 1
     meas = Measurement(log.t, log.u, log.theta, "clean-018")
@@ -111,13 +125,11 @@ def test_a_lugre_lag_on_top_of_a_one_sample_latency_is_not_a_drive_delay(
     assert delay.finding == "computational latency"
 
 
-def test_a_coarse_encoder_read_fast_does_not_make_a_delay(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_coarse_encoder_read_fast_does_not_make_a_delay(fresh_blind_set: Any) -> None:
     """Regression: a clean 2 kHz PID log through a 500-count truncating encoder (fresh blind set,
     seed 777): a count only every ~12 ms while moving, and the alignment came out as a 7.4 ms
     "delay" — finer than the encoder can time the response."""
-    import tests.truthgen.matrix as matrix
-
-    monkeypatch.setattr(matrix, "MATRIX_SEED", 777)
+    matrix = fresh_blind_set
     log, truth = matrix.generate_case("clean-001")
     assert truth["hidden"] == [] and truth["encoder_counts_per_rev"] == 500
     meas = Measurement(log.t, log.u, log.theta, "clean-001")
