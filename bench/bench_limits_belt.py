@@ -141,9 +141,10 @@ def one_run(
     design = AxisModel.for_axis(axis, ["compliance"], fitted) if known else AxisModel.for_axis(axis)
     gains = random_gains(rng)
     shaped = rng.random() < 0.5
-    # The axis starts at rest: inside the belt guard's lines when the model knows the belt (its
-    # assumption), anywhere inside the limits otherwise.
-    start_lo, start_hi = belt_guard_lines(design, limits) if known else (-lim, lim)
+    # The axis starts at rest inside the guard's lines (both guards' assumption): the belt
+    # guard's lines when the model knows the belt, the limits less the guard margin otherwise.
+    line = lim - limits.guard_margin_rad
+    start_lo, start_hi = belt_guard_lines(design, limits) if known else (-line, line)
     r = simulate_closed_loop(
         plant,
         design,

@@ -206,6 +206,14 @@ def guard_command(
     one-sample difference) are combined pessimistically on each side. The stop point assumes
     the command keeps accelerating the axis (``accel_per_v``·u, rad/s² per V) for ``latency_s``
     before the brake acts. Returns volts.
+
+    Past a line the axis is pushed back in, whatever either stop point says: both are checked
+    only once both positions are inside. (When the high side was checked first, an axis past
+    the *low* line whose estimates disagreed in sign — a belt swinging the motor — was braked
+    against the high side, i.e. pushed further out, sample after sample: an unknown 30–60 Hz
+    belt walked the load 287° past; docs/control.md, "Soft limits".) If both stop points cross
+    their lines (the two velocity estimates point opposite ways), the side whose stop point is
+    further past its line is braked against.
     """
     if u_v != u_v:  # NaN from absurd gains: stop pushing
         u_v = 0.0
@@ -218,20 +226,20 @@ def guard_command(
     push = accel_per_v * u_v
     th_hi = max(theta_a, theta_b)
     om_hi = max(omega_a, omega_b, 0.0)
-    if th_hi >= hi:  # over the line (e.g. crept there under gravity): push back in
-        return -u_max_v
-    if _stop_point(th_hi, om_hi, max(push, 0.0), decel_rad_s2, latency_s) >= hi:
-        if om_hi > 0.0:
-            return -u_max_v
-        if u_v > 0.0:
-            return 0.0
     th_lo = min(theta_a, theta_b)
     om_lo = min(omega_a, omega_b, 0.0)
+    if th_hi >= hi:  # over the line (e.g. crept there under gravity): push back in
+        return -u_max_v
     if th_lo <= lo:
         return u_max_v
-    if -_stop_point(-th_lo, -om_lo, max(-push, 0.0), decel_rad_s2, latency_s) <= lo:
-        if om_lo < 0.0:
-            return u_max_v
-        if u_v < 0.0:
-            return 0.0
+    over_hi = _stop_point(th_hi, om_hi, max(push, 0.0), decel_rad_s2, latency_s) - hi
+    over_lo = lo + _stop_point(-th_lo, -om_lo, max(-push, 0.0), decel_rad_s2, latency_s)
+    if over_hi >= 0.0 and om_hi > 0.0 and not (over_lo > over_hi and om_lo < 0.0):
+        return -u_max_v
+    if over_lo >= 0.0 and om_lo < 0.0:
+        return u_max_v
+    if over_hi >= 0.0 and u_v > 0.0:  # at rest near the line: no outward command
+        return 0.0
+    if over_lo >= 0.0 and u_v < 0.0:
+        return 0.0
     return u_v
