@@ -24,7 +24,13 @@ import numpy as np
 
 from tracker.control.closed_loop import simulate_closed_loop
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
-from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits, belt_guard_lines, unknown_belt_margin_rad
+from tracker.control.limits import (
+    GUARD_MARGIN_RAD,
+    UNKNOWN_BELT_MIN_DAMPING,
+    SoftLimits,
+    belt_guard_lines,
+    unknown_belt_margin_rad,
+)
 from tracker.control.trajectory import DEFAULT_LIMITS
 from tracker.plant.model import AxisModel
 
@@ -120,11 +126,12 @@ def one_run(
     site_margin_hz: float | None = None,
     damping: tuple[float, float] = (0.02, 0.5),
     damping_error: float = 1.0,
+    site_damping: float = UNKNOWN_BELT_MIN_DAMPING,
 ) -> Run:
     rng = np.random.default_rng(seed)
     limits = SoftLimits.for_axis(axis)
     if site_margin_hz is not None:  # the site knows only that its belt is at least this stiff
-        margin = unknown_belt_margin_rad(AxisModel.for_axis(axis), site_margin_hz)
+        margin = unknown_belt_margin_rad(AxisModel.for_axis(axis), site_margin_hz, site_damping)
         limits = SoftLimits.for_axis(axis, GUARD_MARGIN_RAD + margin)
     lim = limits.upper_rad
     freq = float(rng.uniform(*band))
@@ -173,6 +180,12 @@ def main() -> None:
         help="guard margin for an unknown belt at least this stiff (unknown_belt_margin_rad)",
     )
     ap.add_argument(
+        "--site-damping",
+        type=float,
+        default=UNKNOWN_BELT_MIN_DAMPING,
+        help="the damping ratio the site margin assumes the unknown belt has at least",
+    )
+    ap.add_argument(
         "--damping-error", type=float, default=1.0, help="fitted damping off by up to this factor"
     )
     ap.add_argument("--damping", default="0.02-0.5", help="belt damping ratio range, log-uniform")
@@ -183,7 +196,14 @@ def main() -> None:
     bands = [(float(b.split("-")[0]), float(b.split("-")[1])) for b in args.bands.split(",")]
     damping = (float(args.damping.split("-")[0]), float(args.damping.split("-")[1]))
     if args.site_margin_hz is not None:
-        print(f"site guard margin for a belt of at least {args.site_margin_hz:g} Hz")
+        hz, zeta = args.site_margin_hz, args.site_damping
+        pan, tilt = (
+            math.degrees(unknown_belt_margin_rad(AxisModel.for_axis(a), hz, zeta)) for a in ("pan", "tilt")
+        )
+        print(
+            f"site guard margin for a belt of at least {hz:g} Hz, damping ≥ {zeta:g}: pan {pan:.2f}°, "
+            f"tilt {tilt:.2f}° (plus {math.degrees(GUARD_MARGIN_RAD):g}°)"
+        )
     print(
         f"design model: {args.model} (belt frequency error ≤ ±{100 * args.freq_error:g} %); hidden gravity "
         f"≤ {args.gravity:g} N·m; {args.runs} runs per axis "
@@ -204,6 +224,7 @@ def main() -> None:
                     args.site_margin_hz,
                     damping,
                     args.damping_error,
+                    args.site_damping,
                 )
                 for i in range(args.runs)
             ]

@@ -22,7 +22,7 @@ from tracker.control.envelope import (
     measure_full_command,
 )
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
-from tracker.control.limits import SoftLimits, guard_command
+from tracker.control.limits import SoftLimits, guard_command, guard_command_held, held_speed
 from tracker.control.trajectory import DEFAULT_LIMITS
 from tracker.errors import ConfigError
 from tracker.plant.model import AxisModel
@@ -194,6 +194,24 @@ def test_when_both_stop_points_cross_the_guard_brakes_against_the_nearer_stop() 
     # Observer −20 rad/s (stops 1.0 rad past the low line), encoder +15 (0.125 past the high one).
     assert guard_command(0.0, 0.0, -20.0, 0.0, 15.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == 10.0
     assert guard_command(0.0, 0.0, 20.0, 0.0, -15.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == -10.0
+
+
+def test_the_guard_brakes_for_the_outward_speed_it_held_not_just_the_current_one() -> None:
+    """A belt swings the motor: for a moment the encoder moves out at 1 rad/s while the load
+    still moves at ~8. The guard's reach holds the fastest recent outward speed, falling no
+    faster than the axis can brake, and brakes (or refuses an outward push) for it."""
+    lim, decel = 1.0, 100.0
+    args = (-lim, lim, 0.0, decel, 0.0, 10.0, 0.0)
+    # 1 rad/s at 0.7 rad stops 5 mrad on: the plain guard lets a push through.
+    assert guard_command(5.0, 0.7, 1.0, 0.7, 1.0, *args) == 5.0
+    # Held 8 rad/s stops 0.32 rad on, past the line: brake while moving out, no push at rest.
+    assert guard_command_held(5.0, 0.7, 1.0, 0.7, 1.0, 8.0, 0.0, *args) == -10.0
+    assert guard_command_held(5.0, 0.7, 0.0, 0.7, 0.0, 8.0, 0.0, *args) == 0.0
+    assert guard_command_held(-5.0, 0.7, 0.0, 0.7, 0.0, 8.0, 0.0, *args) == -5.0  # inward: fine
+    assert guard_command_held(-5.0, -0.7, -1.0, -0.7, -1.0, 0.0, -8.0, *args) == 10.0
+    assert held_speed(8.0, 1.0, 0.4) == pytest.approx(7.6)
+    assert held_speed(8.0, 9.0, 0.4) == 9.0
+    assert held_speed(0.2, -3.0, 0.4) == 0.0
 
 
 def _measure(y_rad: np.ndarray, u_v: float = 10.0, settle: float = 5.0, window: float = 10.0) -> np.ndarray:
