@@ -3,14 +3,17 @@
 Each run draws a belt (compliance 5–50 Hz, damping 0.02–0.5, optional backlash ≤ 0.23°),
 random gains of both structures (|gain| 1e-3…1e5, either sign), random targets (holds, jumps,
 20 Hz sines, ±1e6, NaN), a random start at rest (inside the belt guard's lines when the model
-knows the belt), and hidden motor-side effects within the guard's
-assumptions (offset, Coulomb asymmetry, stiction, delay ≤ 3 ms, amplifier clip ≥ 7 V, ripple;
-gravity on the load side). The design model is either the seed's rigid model (the guard does
-not know of the belt: ``--model rigid``) or the seed's model plus the true belt (``--model
-belt``: a fitted compliance). It prints the worst overshoot past the limit of the load (the
-camera) and of the encoder (the motor), per axis and belt band, and the worst run's recipe.
+knows the belt, inside the rigid guard's line otherwise), and hidden motor-side effects within
+the guard's assumptions (offset, Coulomb asymmetry, stiction, delay ≤ 3 ms, amplifier clip
+≥ 7 V, ripple; gravity on the load side). The design model is either the seed's rigid model
+(the guard does not know of the belt: ``--model rigid``, with ``--site-margin-hz F
+[--site-damping Z]`` for the site margin of an unknown belt at least F Hz stiff and damped Z)
+or the seed's model plus the true belt (``--model belt``: a fitted compliance). It prints the
+worst overshoot past the limit of the load (the camera) and of the encoder (the motor), per
+axis and belt band, and the worst run's recipe.
 
-Run: ``.venv/bin/python bench/bench_limits_belt.py --runs 200 --model belt``.
+Run: ``.venv/bin/python bench/bench_limits_belt.py --runs 200 --model belt``, or for an unknown
+belt ``... --model rigid --site-margin-hz 30 --damping 0.1-0.5 --bands 30-60,60-300 --runs 1000``.
 """
 
 from __future__ import annotations
