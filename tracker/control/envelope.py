@@ -53,8 +53,11 @@ FloatArray = NDArray[np.float64]
 # braked where it was measured.
 MEASURED_FRACTION = 0.6
 # Length of each of the two windows whose second difference measures the deceleration: at
-# 100 rad/s² it spans 54 encoder counts (2 % resolution).
-MEASURE_WINDOW_S = 0.010
+# 100 rad/s² it spans 13.5 encoder counts (7 % resolution). Short windows let a belt's swing
+# scatter single measurements more, which the agreement of three (below) rejects: on a synthetic
+# swing of 0.5–3° at 30–120 Hz the counted value never fell below 0.84× the truth (with 10 ms
+# windows 0.53×, and the first count came 20 ms later, too late for some heavier rigs).
+MEASURE_WINDOW_S = 0.005
 # A measurement counts only if the axis moved this fast over the last window (rad/s): an axis
 # held by stiction or stopping inside the window would understate what the torque does.
 MEASURE_MIN_SPEED_RAD_S = 0.5
@@ -64,12 +67,11 @@ MEASURED_FLOOR_FRACTION = 0.02
 
 # Three consecutive measurements (second differences one window apart) must agree within this
 # share of the largest before the smallest counts: a rigid axis at full command accelerates
-# steadily (quantization: 2 % at 100 rad/s²), while a belt the model does not know swings the
-# motor about the load and its second differences with it. Measured on 30–60 Hz belts, single
-# ones ranged from −1600 to +1100 rad/s² on a tilt that accelerates at 460, set the counted
-# braking to its floor in 1 run in 20, and the guard then braked at every swing
-# (docs/control.md, "Soft limits"); on a synthetic swing of up to 3° at 30–120 Hz three agreeing
-# ones never count less than 0.53× the truth (two agreeing ones: 0.01×).
+# steadily (up to quantization), while a belt the model does not know swings the motor about
+# the load and its second differences with it. Measured on 30–60 Hz belts (10 ms windows, one
+# measurement counted), single ones ranged from −1600 to +1100 rad/s² on a tilt that
+# accelerates at 460, set the counted braking to its floor in 1 run in 20, and the guard then
+# braked at every swing (docs/control.md, "Soft limits").
 MEASURE_AGREEMENT = 0.25
 
 # Measurement state (offsets in the controller's state slice): the sign of the full command
