@@ -3,14 +3,17 @@
 Each run draws a belt (compliance 5–50 Hz, damping 0.02–0.5, optional backlash ≤ 0.23°),
 random gains of both structures (|gain| 1e-3…1e5, either sign), random targets (holds, jumps,
 20 Hz sines, ±1e6, NaN), a random start at rest (inside the belt guard's lines when the model
-knows the belt), and hidden motor-side effects within the guard's
-assumptions (offset, Coulomb asymmetry, stiction, delay ≤ 3 ms, amplifier clip ≥ 7 V, ripple;
-gravity on the load side). The design model is either the seed's rigid model (the guard does
-not know of the belt: ``--model rigid``) or the seed's model plus the true belt (``--model
-belt``: a fitted compliance). It prints the worst overshoot past the limit of the load (the
-camera) and of the encoder (the motor), per axis and belt band, and the worst run's recipe.
+knows the belt, inside the rigid guard's line otherwise), and hidden motor-side effects within
+the guard's assumptions (offset, Coulomb asymmetry, stiction, delay ≤ 3 ms, amplifier clip
+≥ 7 V, ripple; gravity on the load side). The design model is either the seed's rigid model
+(the guard does not know of the belt: ``--model rigid``, with ``--site-margin-hz F
+[--site-damping Z]`` for the site margin of an unknown belt at least F Hz stiff and damped Z)
+or the seed's model plus the true belt (``--model belt``: a fitted compliance). It prints the
+worst overshoot past the limit of the load (the camera) and of the encoder (the motor), per
+axis and belt band, and the worst run's recipe.
 
-Run: ``.venv/bin/python bench/bench_limits_belt.py --runs 200 --model belt``.
+Run: ``.venv/bin/python bench/bench_limits_belt.py --runs 200 --model belt``, or for an unknown
+belt ``... --model rigid --site-margin-hz 30 --damping 0.1-0.5 --bands 30-60,60-300 --runs 1000``.
 """
 
 from __future__ import annotations
@@ -24,7 +27,13 @@ import numpy as np
 
 from tracker.control.closed_loop import simulate_closed_loop
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
-from tracker.control.limits import GUARD_MARGIN_RAD, SoftLimits, belt_guard_lines, unknown_belt_margin_rad
+from tracker.control.limits import (
+    GUARD_MARGIN_RAD,
+    UNKNOWN_BELT_MIN_DAMPING,
+    SoftLimits,
+    belt_guard_lines,
+    unknown_belt_margin_rad,
+)
 from tracker.control.trajectory import DEFAULT_LIMITS
 from tracker.plant.model import AxisModel
 
@@ -120,11 +129,12 @@ def one_run(
     site_margin_hz: float | None = None,
     damping: tuple[float, float] = (0.02, 0.5),
     damping_error: float = 1.0,
+    site_damping: float = UNKNOWN_BELT_MIN_DAMPING,
 ) -> Run:
     rng = np.random.default_rng(seed)
     limits = SoftLimits.for_axis(axis)
     if site_margin_hz is not None:  # the site knows only that its belt is at least this stiff
-        margin = unknown_belt_margin_rad(AxisModel.for_axis(axis), site_margin_hz)
+        margin = unknown_belt_margin_rad(AxisModel.for_axis(axis), site_margin_hz, site_damping)
         limits = SoftLimits.for_axis(axis, GUARD_MARGIN_RAD + margin)
     lim = limits.upper_rad
     freq = float(rng.uniform(*band))
@@ -141,9 +151,10 @@ def one_run(
     design = AxisModel.for_axis(axis, ["compliance"], fitted) if known else AxisModel.for_axis(axis)
     gains = random_gains(rng)
     shaped = rng.random() < 0.5
-    # The axis starts at rest: inside the belt guard's lines when the model knows the belt (its
-    # assumption), anywhere inside the limits otherwise.
-    start_lo, start_hi = belt_guard_lines(design, limits) if known else (-lim, lim)
+    # The axis starts at rest inside the guard's lines (both guards' assumption): the belt
+    # guard's lines when the model knows the belt, the limits less the guard margin otherwise.
+    line = lim - limits.guard_margin_rad
+    start_lo, start_hi = belt_guard_lines(design, limits) if known else (-line, line)
     r = simulate_closed_loop(
         plant,
         design,
@@ -172,6 +183,12 @@ def main() -> None:
         help="guard margin for an unknown belt at least this stiff (unknown_belt_margin_rad)",
     )
     ap.add_argument(
+        "--site-damping",
+        type=float,
+        default=UNKNOWN_BELT_MIN_DAMPING,
+        help="the damping ratio the site margin assumes the unknown belt has at least",
+    )
+    ap.add_argument(
         "--damping-error", type=float, default=1.0, help="fitted damping off by up to this factor"
     )
     ap.add_argument("--damping", default="0.02-0.5", help="belt damping ratio range, log-uniform")
@@ -182,7 +199,14 @@ def main() -> None:
     bands = [(float(b.split("-")[0]), float(b.split("-")[1])) for b in args.bands.split(",")]
     damping = (float(args.damping.split("-")[0]), float(args.damping.split("-")[1]))
     if args.site_margin_hz is not None:
-        print(f"site guard margin for a belt of at least {args.site_margin_hz:g} Hz")
+        hz, zeta = args.site_margin_hz, args.site_damping
+        pan, tilt = (
+            math.degrees(unknown_belt_margin_rad(AxisModel.for_axis(a), hz, zeta)) for a in ("pan", "tilt")
+        )
+        print(
+            f"site guard margin for a belt of at least {hz:g} Hz, damping ≥ {zeta:g}: pan {pan:.2f}°, "
+            f"tilt {tilt:.2f}° (plus {math.degrees(GUARD_MARGIN_RAD):g}°)"
+        )
     print(
         f"design model: {args.model} (belt frequency error ≤ ±{100 * args.freq_error:g} %); hidden gravity "
         f"≤ {args.gravity:g} N·m; {args.runs} runs per axis "
@@ -203,6 +227,7 @@ def main() -> None:
                     args.site_margin_hz,
                     damping,
                     args.damping_error,
+                    args.site_damping,
                 )
                 for i in range(args.runs)
             ]

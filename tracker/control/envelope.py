@@ -15,15 +15,16 @@ guard takes the most pessimistic of them:
 2. **the design model**, which can only make the guard more cautious (a heavier model lowers
    a_brake; a lighter one cannot raise it above the rating);
 3. **the axis's own motion at full command**, measured on line (:func:`measure_full_command`):
-   whenever the applied command has stayed at ±u_max for the command latency plus two windows
-   of ``MEASURE_WINDOW_S`` while the axis moved, the second difference of the encoder over
-   those windows is the acceleration the rig really gave; ``MEASURED_FRACTION`` of the latest
-   one caps a_brake. A full *acceleration* counts as well as a brake: friction helps a brake
-   and hinders a start, so an axis brakes at least as hard as it starts (up to torques that
-   depend on the direction or the angle, which the fraction pays for: gravity 0.12 N·m on the
-   seed's pan is 16 % of its full torque each way). A rig heavier than its rating is thus
-   found while it first runs up to speed at full command, before the brake that needs it
-   (measured: a brake-only version found it during that brake, too late).
+   while the applied command stays at ±u_max (from the command latency on) and the axis moves,
+   the second difference of the encoder over two windows of ``MEASURE_WINDOW_S`` is the
+   acceleration the rig really gave, taken every window; once three in a row agree within
+   ``MEASURE_AGREEMENT`` (a belt the model does not know swings the motor and scatters them),
+   ``MEASURED_FRACTION`` of the smallest caps a_brake. A full *acceleration* counts as well as
+   a brake: friction helps a brake and hinders a start, so an axis brakes at least as hard as
+   it starts (up to torques that depend on the direction or the angle, which the fraction pays
+   for: gravity 0.12 N·m on the seed's pan is 16 % of its full torque each way). A rig heavier
+   than its rating is thus found while it first runs up to speed at full command, before the
+   brake that needs it (measured: a brake-only version found it during that brake, too late).
 
 The push during the latency uses the largest K/J of the rating and the model. The guard's own
 observer is designed on the rating (:meth:`BrakingEnvelope.observer_model`), so no model can
@@ -52,8 +53,11 @@ FloatArray = NDArray[np.float64]
 # braked where it was measured.
 MEASURED_FRACTION = 0.6
 # Length of each of the two windows whose second difference measures the deceleration: at
-# 100 rad/s² it spans 54 encoder counts (2 % resolution).
-MEASURE_WINDOW_S = 0.010
+# 100 rad/s² it spans 13.5 encoder counts (7 % resolution). Short windows let a belt's swing
+# scatter single measurements more, which the agreement of three (below) rejects: on a synthetic
+# swing of 0.5–3° at 30–120 Hz the counted value never fell below 0.84× the truth (with 10 ms
+# windows 0.53×, and the first count came 20 ms later, too late for some heavier rigs).
+MEASURE_WINDOW_S = 0.005
 # A measurement counts only if the axis moved this fast over the last window (rad/s): an axis
 # held by stiction or stopping inside the window would understate what the torque does.
 MEASURE_MIN_SPEED_RAD_S = 0.5
@@ -61,11 +65,21 @@ MEASURE_MIN_SPEED_RAD_S = 0.5
 # believes in no braking at all would refuse every outward move; below this the axis is broken).
 MEASURED_FLOOR_FRACTION = 0.02
 
+# Three consecutive measurements (second differences one window apart) must agree within this
+# share of the largest before the smallest counts: a rigid axis at full command accelerates
+# steadily (up to quantization), while a belt the model does not know swings the motor about
+# the load and its second differences with it. Measured on 30–60 Hz belts (10 ms windows, one
+# measurement counted), single ones ranged from −1600 to +1100 rad/s² on a tilt that
+# accelerates at 460, set the counted braking to its floor in 1 run in 20, and the guard then
+# braked at every swing (docs/control.md, "Soft limits").
+MEASURE_AGREEMENT = 0.25
+
 # Measurement state (offsets in the controller's state slice): the sign of the full command
-# being timed (0: none), samples since it began, encoder at the window marks, the latest
-# measured acceleration along the command (0: none yet).
-E_DIR, E_N, E_Y0, E_Y1, E_DECEL = 0, 1, 2, 3, 4
-N_ES = 5
+# being timed (0: none), samples since it began, encoder at the last three window marks
+# (oldest first: E_Y0, E_Y1, E_Y2), the counted acceleration along the command (0: none yet),
+# and the two previous marks' unconfirmed ones (newest first; 0: none).
+E_DIR, E_N, E_Y0, E_Y1, E_DECEL, E_Y2, E_PREV, E_PREV2 = 0, 1, 2, 3, 4, 5, 6, 7
+N_ES = 8
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,10 +164,12 @@ def measure_full_command(
     """Time full commands and measure the acceleration they give; ``es`` (N_ES,) is updated.
 
     ``u_v`` is the command applied this sample. From ``settle`` samples after it reached ±u_max
-    (the command latency), the encoder ``y_rad`` is marked every ``window`` samples; after two
-    windows the acceleration along the command, sign(u)·(y₂ − 2y₁ + y₀)/(window·dt)², is stored
-    if the axis still moved faster than MEASURE_MIN_SPEED_RAD_S over the last window, and the
-    next pair of windows starts. Any smaller command ends the timing.
+    (the command latency), the encoder ``y_rad`` is marked every ``window`` samples; from the
+    third mark on, each mark gives the acceleration along the command over the last two
+    windows, sign(u)·(y₂ − 2y₁ + y₀)/(window·dt)², if the axis still moved faster than
+    MEASURE_MIN_SPEED_RAD_S over the last window. When the last three of them agree
+    within MEASURE_AGREEMENT, the smallest is stored as the measurement. Any smaller command
+    ends the timing.
     """
     direction = 0.0
     if u_v >= u_max_v:
@@ -163,19 +179,30 @@ def measure_full_command(
     if direction == 0.0 or direction != es[0]:  # es[E_DIR]: a new full command, or none
         es[0] = direction
         es[1] = 0.0
+        es[6] = 0.0  # es[E_PREV], es[E_PREV2]
+        es[7] = 0.0
         return
     n = es[1] + 1.0  # es[E_N]
     es[1] = n
-    if n == settle:
-        es[2] = y_rad  # es[E_Y0]
-    elif n == settle + window:
-        es[3] = y_rad  # es[E_Y1]
-    elif n == settle + 2.0 * window:
-        span = window * dt
-        if abs(y_rad - es[3]) > MEASURE_MIN_SPEED_RAD_S * span:
-            es[4] = direction * (y_rad - 2.0 * es[3] + es[2]) / (span * span)  # es[E_DECEL]
-        es[2] = y_rad  # the next pair of windows starts here
-        es[1] = settle
+    m = n - settle
+    if m < 0.0 or m % window != 0.0:
+        return
+    es[2] = es[3]  # a window mark: E_Y0 ← E_Y1 ← E_Y2 ← y
+    es[3] = es[5]
+    es[5] = y_rad
+    if m < 2.0 * window:
+        return
+    span = window * dt
+    acc = 0.0
+    if abs(y_rad - es[3]) > MEASURE_MIN_SPEED_RAD_S * span:
+        acc = direction * (y_rad - 2.0 * es[3] + es[2]) / (span * span)
+    p1, p2 = es[6], es[7]  # es[E_PREV], es[E_PREV2]
+    if acc != 0.0 and p1 != 0.0 and p2 != 0.0:
+        top = max(abs(acc), abs(p1), abs(p2))
+        if max(acc, p1, p2) - min(acc, p1, p2) <= MEASURE_AGREEMENT * top:
+            es[4] = min(acc, p1, p2)  # es[E_DECEL]
+    es[7] = p1
+    es[6] = acc
 
 
 @njit(cache=True, inline="always")

@@ -56,7 +56,8 @@ from tracker.control.limits import (
     SoftLimits,
     belt_guard_lines,
     clamp_target,
-    guard_command,
+    guard_command_held,
+    held_speed,
 )
 from tracker.control.observer import design_observer
 from tracker.control.trajectory import TrajectoryLimits, shape_step
@@ -94,7 +95,13 @@ C_BGP = 65  # the belt guard's parameters, N_GP of them
 # Full-command measurement (envelope.measure_full_command): samples to let it act, window samples.
 C_MSET = C_BGP + N_GP
 C_MWIN = C_MSET + 1
-N_CP = C_MWIN + 1
+C_REACH = C_MWIN + 1  # how fast (rad/s per sample) the rigid guard's held speeds may fall
+N_CP = C_REACH + 1
+# The rigid guard's reach: the outward speed it brakes for falls no faster than this multiple of
+# the full command's acceleration K·u_max/J (what the full brake plus hidden torques of up to
+# half the torque can do to the axis), so a belt swinging the motor slower for a moment does not
+# hide how fast the load still moves.
+REACH_DECEL_FACTOR = 1.5
 # Adapt only while reference and axis both move faster than this many friction bands.
 ADAPT_BANDS = 5.0
 # Adapted Coulomb stays within [0, ADAPT_MAX_FACTOR × the model's].
@@ -118,7 +125,8 @@ S_GX = 16
 S_FCP, S_FCN = 19, 20  # adapted Coulomb feedforward (V), positive and negative direction
 S_BGS = 21  # the belt guard's state, N_GS of them
 S_ES = S_BGS + N_GS  # the braking measurement's state, N_ES of them
-N_CS = S_ES + N_ES
+S_REACH = S_ES + N_ES  # the rigid guard's held outward speeds (rad/s): toward hi (≥ 0), toward lo (≤ 0)
+N_CS = S_REACH + 2
 
 VELOCITY_OBSERVER, VELOCITY_DIFFERENCE = 0.0, 1.0
 
@@ -180,13 +188,14 @@ def pack_controller(
     else:
         cp[C_VMAX], cp[C_AMAX] = 1e9, 1e12
     cp[C_LO], cp[C_HI] = limits.lower_rad, limits.upper_rad
-    cp[C_TMARG], cp[C_GMARG] = limits.target_margin_rad, limits.guard_margin_rad
+    cp[C_TMARG], cp[C_GMARG] = limits.target_line_margin_rad, limits.guard_margin_rad
     figures = guard_figures(env, model, AMPLIFIER_LIMIT_V)
     cp[C_DECEL], cp[C_KJ] = figures.brake_decel_rad_s2, figures.push_accel_per_v
     cp[C_LAT] = GUARD_LATENCY_S + p.get("delay.seconds", 0.0)
     cp[C_UMAX] = AMPLIFIER_LIMIT_V
     cp[C_MSET] = math.ceil(cp[C_LAT] / dt_s) + 1.0
     cp[C_MWIN] = max(1.0, round(MEASURE_WINDOW_S / dt_s))
+    cp[C_REACH] = REACH_DECEL_FACTOR * figures.push_accel_per_v * AMPLIFIER_LIMIT_V * dt_s
     cp[C_INVK] = 1.0 / k
     if model.has("compliance"):
         # The belt guard keeps the load inside lines the twist margin moves in; targets and the
@@ -195,6 +204,7 @@ def pack_controller(
         cp[C_BELT] = 1.0
         cp[C_BGP : C_BGP + N_GP] = pack_belt_guard(design_belt_guard(model, dt_s), lo_line, hi_line)
         cp[C_LO], cp[C_HI] = cp[C_BGP + G_PLO], cp[C_BGP + G_PHI]
+        cp[C_TMARG] = limits.target_margin_rad  # the hold band already lies inside the lines
     return cp
 
 
@@ -317,12 +327,17 @@ def controller_step(cp: FloatArray, cs: FloatArray, y_rad: float, target_rad: fl
             reset_belt_guard(cs[S_BGS : S_BGS + N_GS], y_rad, g_om)
         ug = belt_guard_command(cp[C_BGP : C_BGP + N_GP], cs[S_BGS : S_BGS + N_GS], y_rad, u, umax)
     else:
-        ug = guard_command(
+        reach_hi = held_speed(cs[S_REACH], max(g_om, v_diff), cp[C_REACH])
+        reach_lo = -held_speed(-cs[S_REACH + 1], -min(g_om, v_diff), cp[C_REACH])
+        cs[S_REACH], cs[S_REACH + 1] = reach_hi, reach_lo
+        ug = guard_command_held(
             u,
             g_th,
             g_om,
             y_rad,
             v_diff,
+            reach_hi,
+            reach_lo,
             cp[C_LO],
             cp[C_HI],
             cp[C_GMARG],

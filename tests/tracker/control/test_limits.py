@@ -12,9 +12,18 @@ from hypothesis import strategies as st
 
 from tracker.control.closed_loop import simulate_closed_loop
 from tracker.control.design import design_controller
-from tracker.control.envelope import BrakingEnvelope, guard_figures
+from tracker.control.envelope import (
+    E_DECEL,
+    MEASURE_WINDOW_S,
+    MEASURED_FRACTION,
+    N_ES,
+    BrakingEnvelope,
+    counted_decel,
+    guard_figures,
+    measure_full_command,
+)
 from tracker.control.gains import ControllerGains, LeadGains, ObserverPdGains
-from tracker.control.limits import SoftLimits, guard_command
+from tracker.control.limits import SoftLimits, guard_command, guard_command_held, held_speed
 from tracker.control.trajectory import DEFAULT_LIMITS
 from tracker.errors import ConfigError
 from tracker.plant.model import AxisModel
@@ -166,6 +175,87 @@ def test_guard_counts_on_the_push_of_the_current_command_during_the_latency() ->
     assert guard_command(0.0, 0.99, 0.0, 0.99, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 0.0
     assert guard_command(10.0, 0.99, 0.0, 0.99, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 0.0
     assert guard_command(1e9, 0.5, 0.0, 0.5, 0.0, -lim, lim, 0.0, decel, 0.004, 10.0, k_over_j) == 10.0
+
+
+def test_regression_past_the_low_line_the_guard_pushes_in_whatever_the_high_side_says() -> None:
+    """Captured from a tilt run on an unknown 30 Hz belt: the encoder past the low line, the
+    observer's velocity outward, the encoder's difference inward (the belt swings the motor), the
+    counted braking low. The high side was checked first, its stop point crossed, and the guard
+    braked against it — out past the low line — every other sample, until the load was 51° past."""
+    r = math.radians
+    args = (r(-34.418), -3.04, r(-34.106), 4.80, r(-45.0), r(45.0), r(11.146), 5.07, 0.004, 10.0, 50.68)
+    assert guard_command(-10.0, *args) == 10.0
+    assert guard_command(10.0, *args) == 10.0
+
+
+def test_when_both_stop_points_cross_the_guard_brakes_against_the_nearer_stop() -> None:
+    """The two velocity estimates point opposite ways and both stop points cross: the side whose
+    stop point is further past its line is braked against, on either side alike."""
+    lim, decel = 1.0, 100.0
+    # Observer −20 rad/s (stops 1.0 rad past the low line), encoder +15 (0.125 past the high one).
+    assert guard_command(0.0, 0.0, -20.0, 0.0, 15.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == 10.0
+    assert guard_command(0.0, 0.0, 20.0, 0.0, -15.0, -lim, lim, 0.0, decel, 0.0, 10.0, 0.0) == -10.0
+
+
+def test_the_guard_brakes_for_the_outward_speed_it_held_not_just_the_current_one() -> None:
+    """A belt swings the motor: for a moment the encoder moves out at 1 rad/s while the load
+    still moves at ~8. The guard's reach holds the fastest recent outward speed, falling no
+    faster than the axis can brake, and brakes (or refuses an outward push) for it."""
+    lim, decel = 1.0, 100.0
+    args = (-lim, lim, 0.0, decel, 0.0, 10.0, 0.0)
+    # 1 rad/s at 0.7 rad stops 5 mrad on: the plain guard lets a push through.
+    assert guard_command(5.0, 0.7, 1.0, 0.7, 1.0, *args) == 5.0
+    # Held 8 rad/s stops 0.32 rad on, past the line: brake while moving out, no push at rest.
+    assert guard_command_held(5.0, 0.7, 1.0, 0.7, 1.0, 8.0, 0.0, *args) == -10.0
+    assert guard_command_held(5.0, 0.7, 0.0, 0.7, 0.0, 8.0, 0.0, *args) == 0.0
+    assert guard_command_held(-5.0, 0.7, 0.0, 0.7, 0.0, 8.0, 0.0, *args) == -5.0  # inward: fine
+    assert guard_command_held(-5.0, -0.7, -1.0, -0.7, -1.0, 0.0, -8.0, *args) == 10.0
+    assert held_speed(8.0, 1.0, 0.4) == pytest.approx(7.6)
+    assert held_speed(8.0, 9.0, 0.4) == 9.0
+    assert held_speed(0.2, -3.0, 0.4) == 0.0
+
+
+WINDOW = float(round(MEASURE_WINDOW_S / DT))
+
+
+def _measure(y_rad: np.ndarray, u_v: float = 10.0, settle: float = 5.0) -> np.ndarray:
+    es = np.zeros(N_ES)
+    for y in y_rad:
+        measure_full_command(es, float(y), u_v, 10.0, settle, WINDOW, DT)
+    return es
+
+
+def test_the_full_command_measurement_counts_steady_acceleration() -> None:
+    """A rigid axis at full command: 120 rad/s² along the command, counted once three
+    consecutive second differences agree (at the fifth window mark, 20 ms after the latency);
+    the opposite command reads the same acceleration as braking."""
+    t = np.arange(60) * DT
+    es = _measure(0.1 + 2.0 * t + 0.5 * 120.0 * t**2)
+    assert es[E_DECEL] == pytest.approx(120.0, rel=1e-6)
+    first = int(5 + 4 * WINDOW)  # the fifth window mark: the third second difference
+    assert _measure(0.1 + 2.0 * t[:first] + 0.5 * 120.0 * t[:first] ** 2)[E_DECEL] == 0.0
+    assert _measure(0.1 + 2.0 * t[: first + 1] + 0.5 * 120.0 * t[: first + 1] ** 2)[E_DECEL] > 0.0
+    assert _measure(np.full(60, 0.1))[E_DECEL] == 0.0  # no motion: nothing measured
+    es = _measure(0.1 - 2.0 * t - 0.5 * 120.0 * t**2, u_v=-10.0)
+    assert es[E_DECEL] == pytest.approx(120.0, rel=1e-6)
+    assert counted_decel(250.0, es) == pytest.approx(MEASURED_FRACTION * 120.0)
+
+
+@pytest.mark.parametrize("freq_hz", [30.0, 37.0, 45.0, 53.0, 60.0])
+def test_regression_a_belt_swinging_the_motor_is_not_taken_for_the_axis_braking(freq_hz: float) -> None:
+    """The motor (encoder) of a belt axis swings about the load: single second differences over
+    10 ms windows of a 1.5° swing at 30–60 Hz on a 460 rad/s² start range from −580 to +1500
+    rad/s² (over 5 ms windows, further). One such
+    value set the counted braking to its 2 % floor (5 of 250 rad/s²) and the guard then braked
+    at every swing; three in a row must now agree, and at no phase does that count less than
+    0.75× what the axis does."""
+    t = np.arange(300) * DT
+    for phase in np.linspace(0.0, 2 * math.pi, 24, endpoint=False):
+        es = np.zeros(N_ES)
+        swing = math.radians(1.5) * np.sin(2 * math.pi * freq_hz * t + phase)
+        for y in 2.0 * t + 0.5 * 460.0 * t**2 + swing:
+            measure_full_command(es, float(y), 10.0, 10.0, 5.0, WINDOW, DT)
+            assert counted_decel(250.0, es) >= MEASURED_FRACTION * 0.75 * 460.0
 
 
 @pytest.mark.parametrize(("axis", "target_deg"), [("pan", 90.0), ("tilt", -45.0), ("tilt", 60.0)])
