@@ -345,7 +345,13 @@ def _register_diagnose(sub: argparse._SubParsersAction) -> None:  # type: ignore
             if d.verdict
             else "VERDICT: nothing significant is missing"
         )
-        lines = [_header(meas, model), f"current model: fit {d.fit_percent:.3f} % (k-step)", verdict, ""]
+        fit = f"current model: fit {d.fit_percent:.3f} % (k-step)"
+        if d.refit_fit_percent is not None:
+            fit = (
+                f"current model: fit {d.refit_fit_percent:.3f} % (k-step) with its base parameters "
+                f"refitted to this log ({d.fit_percent:.3f} % as given: they are far from this data)"
+            )
+        lines = [_header(meas, model), fit, verdict, ""]
         for i, c in enumerate(d.candidates, start=1):
             lines += card(i, c)
         if d.notes:

@@ -95,6 +95,9 @@ class Diagnosis:
     notes: tuple[str, ...] = ()
     elapsed_s: float = 0.0
     baseline_params: Mapping[str, float] = field(default_factory=dict)
+    # The fit with the base parameters refitted, when the current ones are far off the data
+    # (the candidates are then judged against that refit).
+    refit_fit_percent: float | None = None
 
     def to_dict(self) -> dict[str, object]:
         """The CLI contract: fit_percent, verdict, candidates (best first), plus notes."""
@@ -104,6 +107,7 @@ class Diagnosis:
             "candidates": [c.to_dict() for c in self.candidates],
             "notes": list(self.notes),
             "elapsed_s": self.elapsed_s,
+            "refit_fit_percent": self.refit_fit_percent,
         }
 
     def candidate(self, effect: str) -> Candidate:
@@ -182,7 +186,8 @@ def diagnose(
     notes = notes_for(candidates, ctx, verdict)
     small = [(r.effect, negligible(r.effect, r.model)) for r in rows if r.passed and not r.significant]
     notes += tuple(f"{effect} is detectable but small: {why}" for effect, why in small if why)
-    if base_model is not model and current.sse > FAR_OFF_RATIO * refit_score.sse:
+    far_off = base_model is not model and current.sse > FAR_OFF_RATIO * refit_score.sse
+    if far_off:
         notes = (
             "the current model's parameters are far from this data: with its base parameters refitted by "
             f"inverse dynamics the fit is {refit_score.fit_percent:.3f} % "
@@ -202,7 +207,15 @@ def diagnose(
         base_model = latency.model
     step(1.0)
     elapsed = time.perf_counter() - t0
-    return Diagnosis(current.fit_percent, verdict, tuple(candidates), notes, elapsed, dict(base_model.params))
+    return Diagnosis(
+        current.fit_percent,
+        verdict,
+        tuple(candidates),
+        notes,
+        elapsed,
+        dict(base_model.params),
+        refit_score.fit_percent if far_off else None,
+    )
 
 
 def _candidate(r: Judged, ctx: EvidenceContext, significant: list[str]) -> Candidate:

@@ -48,3 +48,17 @@ def test_a_file_that_is_not_matlab_is_a_data_error(tmp_path: Path) -> None:
         load_emps(bad)
     with pytest.raises(DataError, match="no such file"):
         load_emps(tmp_path / "missing.mat")
+
+
+@needs_data
+def test_diagnosis_of_emps_with_the_pan_preset_first_says_the_refitted_fit() -> None:
+    """Issue 13, first numbers: the pan preset (J = 0.002) on a 95 kg axis predicts at about
+    −10000 %; the diagnosis judges against a refit, and says that figure first."""
+    from tracker.plant.model import AxisModel
+    from tracker.workbench.diagnose.diagnose import diagnose
+
+    meas, gain = load_emps(EMPS)
+    d = diagnose(meas, AxisModel.for_axis("pan", gain_nm_per_v=gain))
+    assert d.fit_percent < 0.0
+    assert d.refit_fit_percent is not None and d.refit_fit_percent > 99.9
+    assert d.to_dict()["refit_fit_percent"] == d.refit_fit_percent
