@@ -6,9 +6,10 @@
 
 The truth generator is ``tests/truthgen`` (imports nothing from ``tracker``). Scoring runs the
 project's command line as an outside user would (the user knows the axis and the gain only):
-``tracker model diagnose FILE --axis A --gain K --json``; for pairs a second round with
-``--effects <first verdict>``; and ``tracker model fit FILE --axis A --gain K --effects <true
-hidden> --json`` for the parameters. The heldout split is for the final evaluation only.
+``tracker model diagnose FILE --axis A --gain K --json``; for pairs a second round as a user
+makes it: ``fit --effects <first verdict>``, then ``diagnose`` of that fitted model (``--set``);
+and ``tracker model fit FILE --axis A --gain K --effects <true hidden> --json`` for the
+parameters. The heldout split is for the final evaluation only.
 """
 
 from __future__ import annotations
@@ -202,9 +203,14 @@ def score_one(csv: Path, tracker: str) -> dict[str, Any]:
         found = [e for e in hidden if _match(v1, e)]
         v2 = "not_run"
         if v1 not in ("none", "error"):
-            d2, t2 = run_cli(tracker, ["model", "diagnose", str(csv), *base, "--effects", v1])
+            # As a user would: add the verdict and refit everything (``fit --effects``), then
+            # diagnose the refitted model (its values passed with ``--set``).
+            f1, tf = run_cli(tracker, ["model", "fit", str(csv), *base, "--effects", v1, "--no-keep"])
+            fitted = f1.get("params") if isinstance(f1.get("params"), dict) else {}
+            sets = [a for k, v in fitted.items() for a in ("--set", f"{k}={v!r}")]
+            d2, t2 = run_cli(tracker, ["model", "diagnose", str(csv), *base, "--effects", v1, *sets])
             v2 = _verdict(d2, missing, "diagnose round 2")
-            rec["diagnose2_s"] = t2
+            rec["diagnose2_s"] = t2 + tf
             if "error" in d2:
                 rec["diagnose2_error"] = d2["error"]
             found += [e for e in hidden if _match(v2, e) and e not in found]
@@ -322,7 +328,7 @@ def summarize(recs: list[dict[str, Any]]) -> str:
     pairs = [x for x in recs if len(x["hidden"]) == 2]
     if pairs:
         w("")
-        w("Pairs: both effects named in two rounds (diagnose, then diagnose --effects <first verdict>)")
+        w("Pairs: both effects named in two rounds (diagnose; fit --effects <verdict>; diagnose that fit)")
         w(f"  all                {_pct(sum(x['pair_found'] for x in pairs), len(pairs))}")
         w(f"  first verdict in the pair {_pct(sum(x['right_first'] for x in pairs), len(pairs))}")
         for lab in sorted({x["label"] for x in pairs}):
