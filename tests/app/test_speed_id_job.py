@@ -53,11 +53,16 @@ def test_speed_id_measures_the_cameras_table(tmp_path: Path) -> None:
             assert poll(lambda: status()["driver"]["held_by"] == "the speed-id job", 2.0), status()
             again = client.post(f"{API}/jobs/speed-id", headers=h, json={"axis": "pan", "steps": [3]})
             assert again.status_code == 409 and "already taken over" in again.text, again.text
+            r = client.put(f"{API}/tracking", headers=h, json={"enabled": True})
+            assert r.status_code == 409 and "taken over by the speed-id job" in r.text, r.text
 
             def finished() -> dict | None:  # type: ignore[type-arg]
                 j: dict = client.get(f"{API}/jobs/{job_id}", headers=h).json()  # type: ignore[type-arg]
                 return j if j["state"] in {"done", "failed", "cancelled"} else None
 
+            mid = poll(lambda: (j := client.get(f"{API}/jobs/{job_id}", headers=h).json())["progress"] > 0
+                       and j, 30.0, 0.05)
+            assert mid and "of the steps measured" in mid["message"], mid
             job = poll(finished, 60.0, 0.1)
             assert job and job["state"] == "done", job
             res = job["result"]
@@ -72,6 +77,16 @@ def test_speed_id_measures_the_cameras_table(tmp_path: Path) -> None:
             # handed back: the engine steers again, and the head is back where it was held
             assert poll(lambda: status()["driver"]["held_by"] is None, 2.0)
             assert poll(lambda: abs(camera.pan_deg() - start_deg) < 0.3, 5.0), (camera.pan_deg(), start_deg)
+
+            # cancelled (between runs): stopped and handed back
+            r = client.post(f"{API}/jobs/speed-id", headers=h, json={"axis": "tilt", "steps": [1, 2]})
+            assert r.status_code == 202, r.text
+            job_id = r.json()["id"]
+            assert poll(lambda: status()["driver"]["held_by"] is not None, 2.0)
+            assert client.post(f"{API}/jobs/{job_id}/cancel", headers=h).status_code == 200
+            job = poll(finished, 30.0, 0.1)
+            assert job and job["state"] == "cancelled", job
+            assert poll(lambda: status()["driver"]["held_by"] is None, 2.0)
     finally:
         camera.close()
 
