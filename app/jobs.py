@@ -5,6 +5,10 @@ client can poll it. The job function is a module-level function called in a work
 ``fn(progress, cancel, *args)``: ``progress(fraction, message)`` reaches the database through
 the pool's queue; ``cancel`` works both as a callable (``cancel() -> bool``) and as an event
 (``cancel.is_set()``), set from here through shared memory.
+
+A job that must drive what lives on the service's event loop (the PTZ camera's link: the
+speed-table identification) runs there instead, :meth:`JobRunner.start_local`, as an async
+function ``fn(progress, cancel)`` with the same state, progress, cancel and cap.
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from app.db import Database
@@ -25,6 +29,7 @@ from tracker.errors import JobCancelled, TrackerError
 log = logging.getLogger("app.jobs")
 
 JobFn = Callable[..., dict[str, Any]]
+LocalJobFn = Callable[[Callable[[float, str], None], Callable[[], bool]], Awaitable[dict[str, Any]]]
 
 
 class JobRunner:
@@ -59,20 +64,46 @@ class JobRunner:
         self._tasks[job_id] = asyncio.create_task(self._run(job_id, kind, fn, args), name=f"job-{job_id}")
         return job_id
 
+    def start_local(self, kind: str, params: dict[str, Any], fn: LocalJobFn) -> int:
+        """Record the job and run ``await fn(progress, cancel)`` on this event loop (see the module
+        docstring); returns its id. TooManyRequests (429) as :meth:`start`."""
+        if len(self._tasks) >= self.max_running:
+            raise TooManyRequests(
+                f"{len(self._tasks)} jobs are running (cap {self.max_running}, setting max_running_jobs); "
+                "wait for one to finish or cancel it",
+                retry_after_s=5.0,
+            )
+        job_id = self.db.add_job(kind, params)
+
+        def progress(fraction: float, message: str) -> None:
+            if job_id not in self._cancelled:
+                self.db.update_job(job_id, progress=fraction, message=message)
+
+        def work(_job_id: int) -> Awaitable[dict[str, Any]]:
+            return fn(progress, lambda: job_id in self._cancelled)
+
+        self._tasks[job_id] = asyncio.create_task(self._run(job_id, kind, work, None), name=f"job-{job_id}")
+        return job_id
+
     def progress(self, job_id: int, fraction: float, message: str) -> None:
         """A progress report from a worker (the pool's thread calls this)."""
         if job_id in self._slots and job_id not in self._cancelled:
             self.db.update_job(job_id, progress=fraction, message=message)
 
-    async def _run(self, job_id: int, kind: str, fn: JobFn, args: tuple[Any, ...]) -> None:
+    async def _run(self, job_id: int, kind: str, fn: Callable[..., Any], args: tuple[Any, ...] | None,
+                   ) -> None:
+        """``args`` None: ``fn(job_id)`` is a coroutine run here (start_local), else a worker's job."""
         self.db.update_job(job_id, state="running")
         t0 = time.monotonic()
         try:
-            slot, future = self.pool.submit_job(fn, job_id, *args)
-            self._slots[job_id] = slot
-            if job_id in self._cancelled:  # cancelled before it was handed to the pool
-                self.pool.cancel(slot)
-            result = await asyncio.wrap_future(future)
+            if args is None:
+                result = await fn(job_id)
+            else:
+                slot, future = self.pool.submit_job(fn, job_id, *args)
+                self._slots[job_id] = slot
+                if job_id in self._cancelled:  # cancelled before it was handed to the pool
+                    self.pool.cancel(slot)
+                result = await asyncio.wrap_future(future)
         except JobCancelled:
             self.db.update_job(job_id, state="cancelled", message="cancelled")
         except TrackerError as exc:
@@ -116,6 +147,7 @@ class JobRunner:
             await asyncio.shield(task)
 
     async def shutdown(self) -> None:
+        self._cancelled.update(self._tasks)  # local jobs see it at their next step
         for job_id, slot in list(self._slots.items()):
             self._cancelled.add(job_id)
             self.pool.cancel(slot)

@@ -182,6 +182,13 @@ class FrictionJobIn(Strict):
     source: Literal["rig", "practice"] = "rig"
 
 
+class SpeedIdJobIn(Strict):
+    axis: Axis = "pan"
+    count: int = Field(6, ge=2, le=32, description="speed steps spread over the profile's table")
+    steps: list[int] | None = Field(None, min_length=1, max_length=32,
+                                    description="the steps to measure instead of `count` (1..table size)")
+
+
 class PracticeNewIn(Strict):
     axis: Axis = "pan"
     seed: int | None = Field(None, ge=0, le=2**32 - 1)

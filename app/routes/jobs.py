@@ -1,4 +1,5 @@
-"""Jobs: friction-ID (start, progress, cancel, result) and the list of recent jobs.
+"""Jobs: friction-ID and, on a PTZ camera, the speed-table identification (start, progress,
+cancel, result; :mod:`app.speed_id_job`) and the list of recent jobs.
 
 Friction-ID runs the seed's experiment automated — constant voltages across the range, the
 steady speed of each — through ``tracker.workbench.experiments.friction_id`` on a simulated rig built like
@@ -17,8 +18,9 @@ from app.auth import Engineer, Viewer
 from app.errors import NotFound
 from app.modelio import model_to_json
 from app.routes.practice import practice_model, practice_state
-from app.schemas import FrictionJobIn, RowId
+from app.schemas import FrictionJobIn, RowId, SpeedIdJobIn
 from app.service import Svc
+from app.speed_id_job import KIND, check_camera, speed_id_job
 from app.worker_tasks import friction_job
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -35,6 +37,17 @@ async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dic
     job_id = svc.jobs.start("friction-id", body.model_dump(), friction_job, rig_config, hidden_json,
                             hidden_axis, body.axis)
     await svc.audit.record(who, "job.start", str(job_id), {"kind": "friction-id", **body.model_dump()})
+    return svc.db.get_job(job_id) or {"id": job_id}
+
+
+@router.post("/speed-id", status_code=202,
+             summary="Start a speed-table identification on the PTZ camera; poll GET /jobs/{id}")
+async def start_speed_id(body: SpeedIdJobIn, svc: Svc, who: Engineer) -> dict[str, Any]:
+    """409 when the driver is not a camera, tracking is on, or the camera is not free to move."""
+    cam = check_camera(svc.engine, svc.settings.driver)
+    steps = None if body.steps is None else tuple(body.steps)
+    job_id = svc.jobs.start_local(KIND, body.model_dump(), speed_id_job(cam, body.axis, steps, body.count))
+    await svc.audit.record(who, "job.start", str(job_id), {"kind": KIND, **body.model_dump()})
     return svc.db.get_job(job_id) or {"id": job_id}
 
 

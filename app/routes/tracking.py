@@ -11,6 +11,7 @@ from fastapi import APIRouter
 from app.auth import Operator
 from app.schemas import TrackingIn, TrackingOut
 from app.service import Svc
+from app.speed_id_job import refuse_while_held
 
 router = APIRouter(tags=["tracking"])
 
@@ -19,6 +20,7 @@ router = APIRouter(tags=["tracking"])
 async def put_tracking(body: TrackingIn, svc: Svc, who: Operator) -> TrackingOut:
     if body.enabled:
         svc.engine.require_no_fault()
+        refuse_while_held(svc.engine)  # a speed-table identification job drives the camera
         # Re-enabling tracking ends the manual override: only the holder of manual control (or
         # anyone when nobody holds it) may do that; 409 otherwise.
         svc.lock.acquire(who)

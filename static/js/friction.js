@@ -1,6 +1,7 @@
 // Friction-ID page: start a job, follow its progress, cancel, plot torque against velocity.
 import { $, esc, fmt, get, post, toast } from "./api.js";
 import { C, dots, line, makeChart, setData, watchSize } from "./charts.js";
+import * as speedid from "./speedid.js";
 
 let jobId = null;
 let timer = null;
@@ -15,9 +16,10 @@ export function init() {
   $("fric-cancel").addEventListener("click", async () => {
     if (jobId) try { await post(`/jobs/${jobId}/cancel`); } catch (e) { toast(e.message, true); }
   });
+  speedid.init();
 }
 
-export function show() {}
+export function show() { speedid.show(); }
 
 export async function start(ev, source) {
   ev?.preventDefault();

@@ -12,6 +12,11 @@ No answer for ``link_lost_s`` latches the fault "link lost" (the console shows i
 the driver and reconnects with back-off (0.25 s doubling to 5 s). After any (re)connection the
 targets are forgotten: the camera does not move until enabled again and given a target.
 
+:meth:`ViscaCamera.take_over` lends the camera to a job that drives it itself (the console's
+speed-table identification): until :meth:`ViscaCamera.hand_back` the supervisor sends no
+steering and the engine's targets are ignored; at hand-back the targets are forgotten, so the
+camera then goes back to the engine's next target (where it was held before the job).
+
 The one-shot commands (absolute and relative moves, home, presets, zoom, inquiries) are
 awaitable, sent with retransmission, and refuse to move the camera while disabled. Soft
 limits (the engine's, within the camera's own range) clamp every absolute target, and speed
@@ -94,6 +99,7 @@ class ViscaCamera:
         self._sent_drive: tuple[AxisDrive, AxisDrive] | None = None
         self._sent_abs: tuple[float, float] | None = None
         self._stop_repeats = 0
+        self._held_by: str | None = None  # a job the camera is lent to (take_over)
         self._task: asyncio.Task[None] | None = None
         self._inflight: set[asyncio.Task[Any]] = set()
         self._cycle_times: list[float] = []
@@ -145,9 +151,30 @@ class ViscaCamera:
         if was and self._state == "connected":
             self._stop_repeats = STOP_REPEATS
 
+    @property
+    def held_by(self) -> str | None:
+        """The job the camera is lent to (``take_over``), or None."""
+        return self._held_by
+
+    def take_over(self, holder: str) -> None:
+        """Lend the camera to ``holder`` (see the module docstring); DriverFault when it is lent
+        already, disabled, faulted or not connected."""
+        if self._held_by is not None:
+            raise DriverFault(f"camera {self.spec.url} is already taken over by {self._held_by}")
+        if not (self._enabled and self.ready):
+            raise DriverFault(f"camera {self.spec.url} is not enabled and connected ({self._state})")
+        self._forget_targets()
+        self._drive = {a: STOP for a in AXES}
+        self._held_by = holder
+
+    def hand_back(self) -> None:
+        """End ``take_over``: steering resumes toward the engine's next target."""
+        self._held_by = None
+        self._forget_targets()
+
     def set_target(self, axis: str, angle_rad: float) -> None:
         self._check_axis(axis)
-        if not self._enabled:
+        if not self._enabled or self._held_by is not None:
             return
         if not math.isfinite(angle_rad):
             self.latch_fault(f"{axis}: target {angle_rad!r} rad is not finite")
@@ -161,6 +188,8 @@ class ViscaCamera:
         self._check_axis(axis)
         if not self._enabled:
             raise DriverFault(f"camera {self.spec.url} is disabled: enable it before driving")
+        if self._held_by is not None:
+            raise DriverFault(f"camera {self.spec.url} is taken over by {self._held_by}")
         if not math.isfinite(rate_rad_s):
             raise ConfigError(f"{axis} rate {rate_rad_s!r} rad/s is not finite")
         self._target[axis], self._rate[axis] = None, float(rate_rad_s)
@@ -221,6 +250,7 @@ class ViscaCamera:
             "timeouts": stats.timeouts,
             "sequence_resets": stats.sequence_resets,
             "connects": self.connects,
+            "held_by": self._held_by,
             "last_error": self._last_error,
         }
 
@@ -391,6 +421,9 @@ class ViscaCamera:
         for axis in AXES:
             dv = self._drive[axis].speed_rad_s - self._speed[axis]
             self._speed[axis] += max(-step, min(dv, step))
+        if self._held_by is not None and self._enabled:  # the holder steers (a disable still stops)
+            self._drive = {a: STOP for a in AXES}
+            return None
         if not (self._enabled and self._have_position):
             self._drive = {a: STOP for a in AXES}
             if self._stop_repeats > 0:

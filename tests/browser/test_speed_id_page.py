@@ -1,0 +1,107 @@
+"""The console's speed-table identification card: hidden on the simulated rig, offered on a PTZ
+camera (the service on `tracker camera-emulator` over UDP, both real processes); Start runs the job
+and the measured table against the profile's is shown."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+
+import httpx
+import pytest
+
+from .conftest import CHROMIUM, ROOT, Server, free_port
+
+pytestmark = pytest.mark.browser
+T = 30_000
+
+
+@pytest.fixture(scope="module")
+def camera_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    if not CHROMIUM.exists():
+        pytest.skip("/usr/bin/chromium is absent")
+    data = tmp_path_factory.mktemp("camera-console")
+    cam_port, port, vport = free_port(), free_port(), free_port()
+    log = open(data / "server.log", "w")  # noqa: SIM115
+    emu = subprocess.Popen([sys.executable, "-m", "tracker", "camera-emulator", "--port", str(cam_port)],
+                           cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
+    env = dict(os.environ, TRACKER_DATA_DIR=str(data), TRACKER_PORT=str(port), TRACKER_HOST="127.0.0.1",
+               TRACKER_VIEWER_PORT=str(vport), TRACKER_LOG_LEVEL="warning", TRACKER_AUDIO_ENABLED="false",
+               TRACKER_DRIVER=f"visca+udp://127.0.0.1:{cam_port}")
+    proc = subprocess.Popen([sys.executable, "-c", "from app.main import run_server; run_server()"],
+                            cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 90
+        while True:
+            assert proc.poll() is None, (data / "server.log").read_text()[-2000:]
+            try:
+                if httpx.get(f"{url}/api/v1/health", timeout=2).json().get("engine_running"):
+                    break
+            except (httpx.HTTPError, ValueError):
+                pass
+            assert time.monotonic() < deadline, "server did not start in 90 s"
+            time.sleep(0.2)
+        yield Server(url, (data / "admin.key").read_text().strip(), data, vport)
+    finally:
+        for p in (proc, emu):
+            p.terminate()
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+        log.close()
+
+
+def open_friction_page(browser, server: Server):  # type: ignore[no-untyped-def]
+    ctx = browser.new_context(viewport={"width": 1440, "height": 1000})
+    pg = ctx.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.goto(server.url + "/#friction")
+    pg.fill("#key-input", server.key)
+    pg.click("#signin-form button[type=submit]")
+    pg.wait_for_selector("#page-friction:not([hidden])", timeout=T)
+    return ctx, pg, errors
+
+
+def test_card_is_hidden_on_the_simulated_rig(browser, server: Server) -> None:  # type: ignore[no-untyped-def]
+    ctx, pg, errors = open_friction_page(browser, server)
+    pg.wait_for_timeout(500)
+    assert pg.is_hidden("#sid-card")
+    ctx.close()
+    assert not errors, errors
+
+
+def test_speed_id_runs_on_the_camera(browser, camera_server: Server) -> None:  # type: ignore[no-untyped-def]
+    ok = False
+    for _ in range(100):  # connected and enabled (hold)
+        st = camera_server.api("GET", "/status").json()
+        if st["driver"]["state"] == "connected" and st["mode"] == "hold":
+            ok = True
+            break
+        time.sleep(0.1)
+    assert ok, st
+    ctx, pg, errors = open_friction_page(browser, camera_server)
+    pg.wait_for_selector("#sid-card:not([hidden])", timeout=T)
+    assert "visca+udp://127.0.0.1" in pg.inner_text("#sid-driver")
+    pg.fill("#sid-count", "3")
+    pg.click("#sid-form button[type=submit]")
+    pg.wait_for_function("document.querySelector('#sid-status').textContent.includes('done')", timeout=90_000)
+    text = pg.inner_text("#sid-table")
+    assert "profile °/s" in text and "largest departure from the generic profile" in text
+    job = camera_server.api("GET", "/jobs").json()[0]
+    assert job["kind"] == "speed-id" and job["state"] == "done"
+    table = camera_server.api("GET", f"/jobs/{job['id']}").json()["result"]["table_deg_s"]
+    steps = sorted({t["step"] for t in table})
+    assert steps[0] == 1 and len(steps) >= 2, table  # the fastest step may lack room between the limits
+    rows = pg.query_selector_all("#sid-table tr")
+    assert len(rows) == 1 + len(steps) + 1, text  # header, the steps, notes
+    slow = next(t for t in table if t["step"] == 1 and t["direction"] == 1)
+    assert abs(slow["deviation_percent"]) < 3.0  # the emulator's twin is the profile itself
+    assert f"{slow['measured_deg_s']:.3f}" in text
+    ctx.close()
+    assert not errors, errors
