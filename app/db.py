@@ -178,7 +178,11 @@ class Database:
     def list_measurements(self) -> list[dict[str, Any]]:
         return [
             dict(r)
-            for r in self._all("SELECT id, name, axis, n, dt_s, created_s FROM measurements ORDER BY id")
+            for r in self._all(
+                "SELECT id, name, axis, n, dt_s, created_s, CASE WHEN instr(substr(csv, 1, "
+                "instr(csv || char(10), char(10))), 'speed_cmd') > 0 THEN 'camera' ELSE 'dc' END AS kind "
+                "FROM measurements ORDER BY id"  # kind: a camera log's header has speed_cmd
+            )
         ]
 
     def get_measurement(self, mid: int) -> dict[str, Any] | None:

@@ -17,7 +17,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, UploadFile
 
-from app import heavy
+from app import heavy, heavy_camera
 from app.auth import Engineer, Principal, Viewer
 from app.errors import NotFound, TooLarge, check_axis
 from app.modelio import load_version, plain
@@ -60,7 +60,11 @@ async def effects(who: Viewer) -> list[dict[str, Any]]:
     return plain(out)
 
 
-@router.post("/measurements", status_code=201, summary="Upload a measurement log (CSV t,u,theta)")
+@router.post(
+    "/measurements",
+    status_code=201,
+    summary="Upload a measurement log (CSV t,u,theta; or a PTZ camera log t,speed_cmd,theta)",
+)
 async def upload(
     svc: Svc,
     who: Engineer,
@@ -117,6 +121,8 @@ async def store_measurement(
     command line) with its parameters fitted (``fitted``: already done by the caller's worker).
     Invalid text or options raise DataError or ConfigError before anything is written."""
     check_rows(label, text, svc.settings.max_measurement_rows)
+    if heavy_camera.is_camera(text):
+        return await _store_camera_log(svc, who, label, axis, text, gain_nm_per_v, effects)
     if fitted is None:
         fitted = await svc.work.run(who, heavy.first_version, label, axis, text, gain_nm_per_v, effects)
     mid, vid = await asyncio.to_thread(_insert_measurement, svc, label, axis, text, fitted)
@@ -124,6 +130,34 @@ async def store_measurement(
     assert rec is not None
     rec.pop("csv")
     return {**rec, "first_version_id": vid}
+
+
+async def _store_camera_log(
+    svc: Service,
+    who: Principal,
+    label: str,
+    axis: str,
+    text: str,
+    gain_nm_per_v: float | None,
+    effects: tuple[str, ...],
+) -> dict[str, Any]:
+    """Store a PTZ camera log (no model version: its model is the camera's base model, which
+    compare and diagnose use; app/heavy_camera.py), with the base model's figures."""
+    if gain_nm_per_v is not None or effects:
+        raise ConfigError(f"{label}: a camera log (speed_cmd) takes no gain or starting effects")
+    summary = await svc.work.run(who, heavy_camera.first_summary, label, text)
+    mid = await asyncio.to_thread(svc.db.add_measurement, label, axis, text, summary["n"], summary["dt_s"])
+    rec = svc.db.get_measurement_meta(mid)
+    assert rec is not None
+    return {**rec, "kind": heavy_camera.KIND, "first_version_id": None, "fit": summary["fit"]}
+
+
+def _refuse_camera(rec: dict[str, Any], action: str) -> None:
+    if heavy_camera.is_camera(rec["csv"]):
+        raise ConfigError(
+            f"measurement {rec['id']} is a camera log: {action} is not offered for it in the console "
+            "yet (use compare and diagnose, or `tracker model fit` on the file)"
+        )
 
 
 def _insert_measurement(
@@ -149,8 +183,12 @@ async def list_measurements(svc: Svc, who: Viewer) -> list[dict[str, Any]]:
 @router.get("/measurements/{mid}", summary="A measurement: metadata and decimated series for plots")
 async def get_measurement(mid: RowId, svc: Svc, who: Viewer) -> dict[str, Any]:
     rec = await stored_measurement(svc, mid)
-    series = await svc.work.run(who, heavy.measurement_series, rec.pop("csv"), rec["name"])
-    return {**rec, "series": series}
+    text = rec.pop("csv")
+    if heavy_camera.is_camera(text):
+        series = await svc.work.run(who, heavy_camera.series, text, rec["name"])
+        return {**rec, "kind": heavy_camera.KIND, "series": series}
+    series = await svc.work.run(who, heavy.measurement_series, text, rec["name"])
+    return {**rec, "kind": "dc", "series": series}
 
 
 @router.delete("/measurements/{mid}", status_code=204, summary="Delete a measurement and its versions")
@@ -166,6 +204,8 @@ def _with_version(out: dict[str, Any], v: dict[str, Any]) -> dict[str, Any]:
 @router.post("/measurements/{mid}/compare", summary="Compare a model version with the measurement")
 async def compare(mid: RowId, body: CompareIn, svc: Svc, who: Viewer) -> dict[str, Any]:
     rec = await stored_measurement(svc, mid)
+    if heavy_camera.is_camera(rec["csv"]):
+        return await svc.work.run(who, heavy_camera.compare, rec["csv"], rec["name"], body.horizon_s)
     v, _ = load_version(svc.db, mid, body.version_id)
     out = await svc.work.run(
         who, heavy.compare, rec["csv"], rec["name"], v["model"], body.horizon_s, body.mode
@@ -176,6 +216,8 @@ async def compare(mid: RowId, body: CompareIn, svc: Svc, who: Viewer) -> dict[st
 @router.post("/measurements/{mid}/diagnose", summary="Rank the missing effects of a model version")
 async def diagnose_route(mid: RowId, body: DiagnoseIn, svc: Svc, who: Engineer) -> dict[str, Any]:
     rec = await stored_measurement(svc, mid)
+    if heavy_camera.is_camera(rec["csv"]):
+        return await svc.work.run(who, heavy_camera.diagnose, rec["csv"], rec["name"])
     v, _ = load_version(svc.db, mid, body.version_id)
     out = await svc.work.run(who, heavy.diagnose, rec["csv"], rec["name"], v["model"])
     return _with_version(out, v)
@@ -190,6 +232,7 @@ async def _refit_into_version(
     add_effect: str | None = None,
 ) -> dict[str, Any]:
     rec = await stored_measurement(svc, mid)
+    _refuse_camera(rec, "add-effect" if add_effect is not None else "fit")
     v, model = load_version(svc.db, mid, version_id)
     if add_effect is not None:
         get_effect(add_effect)
