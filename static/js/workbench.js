@@ -6,6 +6,8 @@ import { C, bars, line, makeChart, setData, watchSize } from "./charts.js";
 let session;
 let selected = null;      // measurement id
 let versions = [];
+let kinds = new Map();    // measurement id -> "dc" | "camera" (a PTZ camera log: t,speed_cmd,theta)
+const isCamera = () => kinds.get(selected) === "camera";
 let busy = false;
 
 export function init(s) {
@@ -44,7 +46,8 @@ export async function selectMeasurement(id) {
   for (const li of document.querySelectorAll("#meas-list li")) li.classList.toggle("selected", +li.dataset.id === id);
   $("diag-cards").innerHTML = ""; $("diag-notes").innerHTML = ""; $("wb-verdict").textContent = ""; $("wb-error").textContent = "";
   const canEdit = session.can("engineer");
-  $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit; $("wb-design").disabled = !canEdit;
+  // a camera log is compared and diagnosed with the camera model; fit and design are DC-only here
+  $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit || isCamera(); $("wb-design").disabled = !canEdit || isCamera();
   await loadVersions();
   await compare();
 }
@@ -53,8 +56,9 @@ window.console3dat_workbench = { selectMeasurement, get selected() { return sele
 async function loadList() {
   try {
     const list = await get("/workbench/measurements");
+    kinds = new Map(list.map((m) => [m.id, m.kind]));
     $("meas-list").innerHTML = list.length ? list.slice().reverse().map((m) => `<li data-id="${m.id}" class="${m.id === selected ? "selected" : ""}">
-      <span><b>${esc(m.name)}</b><br><span class="meta">#${m.id} · ${m.axis} · ${(m.n * m.dt_s).toFixed(1)} s at ${(1 / m.dt_s).toFixed(0)} Hz</span></span></li>`).join("")
+      <span><b>${esc(m.name)}</b><br><span class="meta">#${m.id} · ${m.kind === "camera" ? "camera log" : m.axis} · ${(m.n * m.dt_s).toFixed(1)} s at ${(1 / m.dt_s).toFixed(0)} Hz</span></span></li>`).join("")
       : `<li class="muted">No measurements yet: upload a CSV or record one on the practice rig.</li>`;
     for (const li of document.querySelectorAll("#meas-list li[data-id]")) li.onclick = () => selectMeasurement(+li.dataset.id);
   } catch (e) { toast(e.message, true); }
@@ -146,7 +150,9 @@ async function compare(versionId) {
   if (versionId) body.version_id = versionId;
   const m = await post(`/workbench/measurements/${selected}/compare`, body);
   const n = versions.findIndex((v) => v.id === m.version_id) + 1;
-  $("wb-title").textContent = `Measurement #${selected} vs ${m.version_label} (v${n})`;
+  $("wb-title").textContent = m.kind === "camera"
+    ? `Measurement #${selected} (camera log) vs the base camera model (${(m.model.effects || []).join(", ") || "linear speed table, no latency"})`
+    : `Measurement #${selected} vs ${m.version_label} (v${n})`;
   for (const li of document.querySelectorAll("#version-list li")) li.classList.toggle("selected", +li.dataset.vid === m.version_id);
   const s = m.series;
   setData($("plot-overlay"), [s.t_s, s.measured_deg, s.model_deg]);
@@ -154,8 +160,10 @@ async function compare(versionId) {
   $("wb-summary").innerHTML = [
     ["Fit", `${fmt(m.fit_percent, 2)} %`], ["Fit of increments", `${fmt(m.fit_percent_increment, 1)} %`],
     ["RMS error", `${fmt(m.rms_deg, 4)}°`], ["Horizon", m.horizon_s ? `${fmt(m.horizon_s * 1000, 0)} ms ahead` : "free run"],
+    ...(m.kind === "camera" ? [["Quantization floor", `${fmt(m.quantization_floor_deg, 4)}°`]] : []),
   ].map(([k, v]) => `<div class="metric"><div class="k">${k}</div><div class="v">${v}</div></div>`).join("");
   showRegimes(m);
+  if (m.kind === "camera") $("resid-note").textContent = "Camera log: the residual test is not run (error by regime above).";
   showResiduals(m.residual_analysis, m.residual_verdict);
   showParams(versions.find((v) => v.id === m.version_id));
 }
@@ -214,7 +222,8 @@ export async function diagnose() {
   setBusy(true);
   try {
     const d = await post(`/workbench/measurements/${selected}/diagnose`, {});
-    $("wb-verdict").textContent = (d.verdict ? `Most likely missing: ${d.verdict}` : "Nothing significant is missing: the model explains the data.")
+    $("wb-verdict").textContent = (d.kind === "camera" ? `Camera log: fit ${fmt(d.fit_percent, 2)} %, RMS ${fmt(d.rms_deg, 4)}°. ` : "")
+      + (d.verdict ? `Most likely missing: ${d.verdict}` : "Nothing significant is missing: the model explains the data.")
       + (d.agreement ? ` ${d.agreement}` : "");
     const cands = d.candidates || [];
     $("diag-cards").innerHTML = cands.map((c, i) => `<div class="dcard ${c.effect === d.verdict ? "top" : ""} ${c.significant ? "" : "insignificant"}">
@@ -227,7 +236,7 @@ export async function diagnose() {
         const poor = se && Math.abs(se) > 0.1 * Math.abs(v);
         return `${esc(k)} = ${Number(v).toPrecision(4)}${se ? ` ± ${Number(se).toPrecision(2)}` : ""}${poor ? ` <span class="badge warn" title="standard error above 10 % of the value${c.experiment ? `; to pin it: ${esc(c.experiment)}` : ""}">poorly determined</span>` : ""}`;
       }).join("<br>")}</div>
-      <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") ? "" : "disabled"}>Add effect</button>
+      <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") && d.kind !== "camera" ? "" : "disabled"}>Add effect</button>
     </div>`).join("");
     $("diag-notes").innerHTML = (d.notes || []).map(esc).join("<br>");
     for (const b of document.querySelectorAll("[data-add]")) b.onclick = () => addEffect(b.dataset.add);
