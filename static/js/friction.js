@@ -1,10 +1,10 @@
 // Friction-ID page: start a job, follow its progress, cancel, plot torque against velocity.
-import { $, esc, fmt, get, post, toast } from "./api.js";
+import { $, esc, fmt, post, toast } from "./api.js";
 import { C, dots, line, makeChart, setData, watchSize } from "./charts.js";
+import { jobCard } from "./jobs.js";
 import * as speedid from "./speedid.js";
 
-let jobId = null;
-let timer = null;
+let card = null;
 
 export function init() {
   makeChart($("plot-friction"), {
@@ -13,9 +13,7 @@ export function init() {
   });
   watchSize($("plot-friction"));
   $("fric-form").addEventListener("submit", start);
-  $("fric-cancel").addEventListener("click", async () => {
-    if (jobId) try { await post(`/jobs/${jobId}/cancel`); } catch (e) { toast(e.message, true); }
-  });
+  card = jobCard("fric", showResult, (msg) => toast(msg, true));
   speedid.init();
 }
 
@@ -26,32 +24,10 @@ export async function start(ev, source) {
   $("fric-error").textContent = "";
   try {
     const job = await post("/jobs/friction-id", { axis: $("fric-axis").value, source: source || $("fric-source").value });
-    follow(job.id);
+    card.follow(job.id);
   } catch (e) { $("fric-error").textContent = e.message; }
 }
 window.console3dat_friction = { start };
-
-function follow(id) {
-  jobId = id;
-  $("fric-cancel").disabled = false;
-  clearInterval(timer);
-  timer = setInterval(poll, 300);
-  poll();
-}
-
-async function poll() {
-  try {
-    const j = await get(`/jobs/${jobId}`);
-    $("fric-bar").style.width = `${(100 * j.progress).toFixed(0)}%`;
-    $("fric-status").textContent = `Job ${j.id}: ${j.state} · ${(100 * j.progress).toFixed(0)} %${j.message && j.message !== j.state ? ` · ${j.message}` : ""}`;
-    if (["done", "failed", "cancelled"].includes(j.state)) {
-      clearInterval(timer);
-      $("fric-cancel").disabled = true;
-      if (j.state === "done") showResult(j.result);
-      if (j.state === "failed") $("fric-error").textContent = j.message;
-    }
-  } catch (e) { clearInterval(timer); $("fric-error").textContent = e.message; }
-}
 
 function showResult(r) {
   const v = r.plot.velocity_rad_s, tq = r.plot.torque_nm;

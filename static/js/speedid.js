@@ -2,9 +2,9 @@
 // start the job, follow its progress, cancel, plot the measured speed per step against the profile's.
 import { $, esc, fmt, get, post } from "./api.js";
 import { C, dots, line, makeChart, setData, watchSize } from "./charts.js";
+import { jobCard } from "./jobs.js";
 
-let jobId = null;
-let timer = null;
+let card = null;
 
 export function init() {
   makeChart($("plot-speedid"), {
@@ -13,9 +13,7 @@ export function init() {
   });
   watchSize($("plot-speedid"));
   $("sid-form").addEventListener("submit", start);
-  $("sid-cancel").addEventListener("click", async () => {
-    if (jobId) try { await post(`/jobs/${jobId}/cancel`); } catch (e) { $("sid-error").textContent = e.message; }
-  });
+  card = jobCard("sid", showResult);
 }
 
 // The card only when the service steers a PTZ camera (driver visca+udp:// or visca+tcp://).
@@ -33,30 +31,8 @@ async function start(ev) {
   $("sid-error").textContent = "";
   try {
     const job = await post("/jobs/speed-id", { axis: $("sid-axis").value, count: Number($("sid-count").value) });
-    follow(job.id);
+    card.follow(job.id);
   } catch (e) { $("sid-error").textContent = e.message; }
-}
-
-function follow(id) {
-  jobId = id;
-  $("sid-cancel").disabled = false;
-  clearInterval(timer);
-  timer = setInterval(poll, 300);
-  poll();
-}
-
-async function poll() {
-  try {
-    const j = await get(`/jobs/${jobId}`);
-    $("sid-bar").style.width = `${(100 * j.progress).toFixed(0)}%`;
-    $("sid-status").textContent = `Job ${j.id}: ${j.state} · ${(100 * j.progress).toFixed(0)} %${j.message && j.message !== j.state ? ` · ${j.message}` : ""}`;
-    if (["done", "failed", "cancelled"].includes(j.state)) {
-      clearInterval(timer);
-      $("sid-cancel").disabled = true;
-      if (j.state === "done") showResult(j.result);
-      if (j.state === "failed") $("sid-error").textContent = j.message;
-    }
-  } catch (e) { clearInterval(timer); $("sid-error").textContent = e.message; }
 }
 
 function showResult(r) {

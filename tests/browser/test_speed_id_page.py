@@ -76,6 +76,17 @@ def test_card_is_hidden_on_the_simulated_rig(browser, server: Server) -> None:  
     assert not errors, errors
 
 
+def test_the_friction_id_card_follows_its_job_on_the_simulated_rig(browser, server: Server) -> None:  # type: ignore[no-untyped-def]
+    """The friction-ID card and the speed-ID card share the job card (static/js/jobs.js)."""
+    ctx, pg, errors = open_friction_page(browser, server)
+    pg.click("#fric-form button[type=submit]")
+    pg.wait_for_function("document.querySelector('#fric-status').textContent.includes('done')", timeout=90_000)
+    assert "Coulomb" in pg.inner_text("#fric-params")
+    assert pg.is_disabled("#fric-cancel")
+    ctx.close()
+    assert not errors, errors
+
+
 def test_speed_id_runs_on_the_camera(browser, camera_server: Server) -> None:  # type: ignore[no-untyped-def]
     ok = False
     for _ in range(100):  # connected and enabled (hold)
