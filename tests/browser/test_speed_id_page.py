@@ -80,7 +80,8 @@ def test_the_friction_id_card_follows_its_job_on_the_simulated_rig(browser, serv
     """The friction-ID card and the speed-ID card share the job card (static/js/jobs.js)."""
     ctx, pg, errors = open_friction_page(browser, server)
     pg.click("#fric-form button[type=submit]")
-    pg.wait_for_function("document.querySelector('#fric-status').textContent.includes('done')", timeout=90_000)
+    done = "document.querySelector('#fric-status').textContent.includes('done')"
+    pg.wait_for_function(done, timeout=90_000)
     assert "Coulomb" in pg.inner_text("#fric-params")
     assert pg.is_disabled("#fric-cancel")
     ctx.close()
