@@ -161,8 +161,8 @@ def _candidate(d: dict[str, Any], effect: str) -> dict[str, Any] | None:
     return None
 
 
-def score_one(csv: Path, tracker: str) -> dict[str, Any]:
-    """Score one log: diagnose (two rounds for pairs), then fit with the true hidden effects."""
+def score_one(csv: Path, tracker: str, params: bool = True) -> dict[str, Any]:
+    """Score one log: diagnose (two rounds for pairs), then (``params``) fit with the true hidden effects."""
     truth = json.loads(csv.with_suffix(".json").read_text())
     hidden: list[str] = truth["hidden"]
     base = ["--axis", truth["axis"], "--gain", repr(truth["gain_nm_per_v"])]
@@ -218,6 +218,9 @@ def score_one(csv: Path, tracker: str) -> dict[str, Any]:
         rec["pair_found"] = len(set(found)) == 2 or (
             set(hidden) == {"offset", "coulomb_asymmetry"} and v1 != v2 and {v1, v2} <= set(hidden)
         )
+    if not params:
+        rec["missing_keys"] = missing
+        return rec
     # parameters
     if hidden:
         f, tf = run_cli(tracker, ["model", "fit", str(csv), *base, "--effects", ",".join(hidden)])
@@ -416,7 +419,7 @@ def cmd_score(a: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     recs: list[dict[str, Any]] = []
     with ThreadPoolExecutor(a.jobs) as ex:
-        for r in ex.map(lambda p: score_one(p, a.tracker), csvs):
+        for r in ex.map(lambda p: score_one(p, a.tracker, not a.no_params), csvs):
             recs.append(r)
             extra = f" then {r.get('verdict2')}" if "verdict2" in r else ""
             print(
@@ -452,6 +455,7 @@ def main() -> int:
         "--only", default="", help="labels (clean, gravity, gravity+delay) or effects, comma-separated"
     )
     s.add_argument("--report", default="")
+    s.add_argument("--no-params", action="store_true", help="diagnosis only: no fit with the true effects")
     s.add_argument("--tracker", default=os.environ.get("TRACKER_CLI", str(DEFAULT_TRACKER)))
     a = ap.parse_args()
     return cmd_generate(a) if a.cmd == "generate" else cmd_score(a)
