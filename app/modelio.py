@@ -30,6 +30,12 @@ def load_version(
     db: Database, measurement_id: int, version_id: int | None
 ) -> tuple[dict[str, Any], AxisModel]:
     """A version of the measurement's model (the latest when ``version_id`` is None)."""
+    v = load_version_record(db, measurement_id, version_id)
+    return v, model_from_json(v["model"])
+
+
+def load_version_record(db: Database, measurement_id: int, version_id: int | None) -> dict[str, Any]:
+    """The stored version record (model JSON not parsed); NotFound (404) when there is none."""
     if version_id is None:
         versions = db.list_versions(measurement_id)
         if not versions:
@@ -40,7 +46,7 @@ def load_version(
         if got is None or got["measurement_id"] != measurement_id:
             raise NotFound(f"no version {version_id} of measurement {measurement_id}")
         v = got
-    return v, model_from_json(v["model"])
+    return v
 
 
 def decimate_index(n: int, max_points: int = MAX_PLOT_POINTS) -> np.ndarray:

@@ -20,11 +20,12 @@ from fastapi import APIRouter, File, Form, UploadFile
 from app import heavy, heavy_camera
 from app.auth import Engineer, Principal, Viewer
 from app.errors import NotFound, TooLarge, check_axis
-from app.modelio import load_version, plain
+from app.modelio import load_version, load_version_record, plain
 from app.schemas import AddEffectIn, CompareIn, DiagnoseIn, FitIn, RowId
 from app.service import Service, Svc
 from tracker.errors import ConfigError, DataError
 from tracker.plant.effects import BASE_EFFECTS, BUILTIN_EFFECTS, CATALOGUE, OPTIONAL_EFFECTS, get_effect
+from tracker.workbench.camera.model import CAMERA_EFFECTS
 
 router = APIRouter(prefix="/workbench", tags=["workbench"])
 
@@ -141,23 +142,15 @@ async def _store_camera_log(
     gain_nm_per_v: float | None,
     effects: tuple[str, ...],
 ) -> dict[str, Any]:
-    """Store a PTZ camera log (no model version: its model is the camera's base model, which
-    compare and diagnose use; app/heavy_camera.py), with the base model's figures."""
+    """Store a PTZ camera log and its first version, the base camera model with its speed per
+    step fitted (app/heavy_camera.py)."""
     if gain_nm_per_v is not None or effects:
         raise ConfigError(f"{label}: a camera log (speed_cmd) takes no gain or starting effects")
-    summary = await svc.work.run(who, heavy_camera.first_summary, label, text)
-    mid = await asyncio.to_thread(svc.db.add_measurement, label, axis, text, summary["n"], summary["dt_s"])
+    fitted = await svc.work.run(who, heavy_camera.first_version, label, text)
+    mid, vid = await asyncio.to_thread(_insert_measurement, svc, label, axis, text, fitted)
     rec = svc.db.get_measurement_meta(mid)
     assert rec is not None
-    return {**rec, "kind": heavy_camera.KIND, "first_version_id": None, "fit": summary["fit"]}
-
-
-def _refuse_camera(rec: dict[str, Any], action: str) -> None:
-    if heavy_camera.is_camera(rec["csv"]):
-        raise ConfigError(
-            f"measurement {rec['id']} is a camera log: {action} is not offered for it in the console "
-            "yet (use compare and diagnose, or `tracker model fit` on the file)"
-        )
+    return {**rec, "kind": heavy_camera.KIND, "first_version_id": vid, "fit": fitted["fit"]}
 
 
 def _insert_measurement(
@@ -205,7 +198,12 @@ def _with_version(out: dict[str, Any], v: dict[str, Any]) -> dict[str, Any]:
 async def compare(mid: RowId, body: CompareIn, svc: Svc, who: Viewer) -> dict[str, Any]:
     rec = await stored_measurement(svc, mid)
     if heavy_camera.is_camera(rec["csv"]):
-        return await svc.work.run(who, heavy_camera.compare, rec["csv"], rec["name"], body.horizon_s)
+        cv = _camera_version(svc, mid, body.version_id)
+        model_json = None if cv is None else cv["model"]
+        out = await svc.work.run(
+            who, heavy_camera.compare, rec["csv"], rec["name"], model_json, body.horizon_s
+        )
+        return out if cv is None else _with_version(out, cv)
     v, _ = load_version(svc.db, mid, body.version_id)
     out = await svc.work.run(
         who, heavy.compare, rec["csv"], rec["name"], v["model"], body.horizon_s, body.mode
@@ -217,7 +215,10 @@ async def compare(mid: RowId, body: CompareIn, svc: Svc, who: Viewer) -> dict[st
 async def diagnose_route(mid: RowId, body: DiagnoseIn, svc: Svc, who: Engineer) -> dict[str, Any]:
     rec = await stored_measurement(svc, mid)
     if heavy_camera.is_camera(rec["csv"]):
-        return await svc.work.run(who, heavy_camera.diagnose, rec["csv"], rec["name"])
+        cv = _camera_version(svc, mid, body.version_id)
+        model_json = None if cv is None else cv["model"]
+        out = await svc.work.run(who, heavy_camera.diagnose, rec["csv"], rec["name"], model_json)
+        return out if cv is None else _with_version(out, cv)
     v, _ = load_version(svc.db, mid, body.version_id)
     out = await svc.work.run(who, heavy.diagnose, rec["csv"], rec["name"], v["model"])
     return _with_version(out, v)
@@ -232,7 +233,8 @@ async def _refit_into_version(
     add_effect: str | None = None,
 ) -> dict[str, Any]:
     rec = await stored_measurement(svc, mid)
-    _refuse_camera(rec, "add-effect" if add_effect is not None else "fit")
+    if heavy_camera.is_camera(rec["csv"]):
+        return await _refit_camera(svc, who, rec, version_id, free, add_effect)
     v, model = load_version(svc.db, mid, version_id)
     if add_effect is not None:
         get_effect(add_effect)
@@ -245,6 +247,47 @@ async def _refit_into_version(
     new = await svc.work.run(
         who, heavy.refit, rec["csv"], rec["name"], rec["axis"], v["model"], free, add_effect, label, earlier
     )
+    vid = svc.db.add_version(mid, v["id"], label, new["model"], new["fit"])
+    out = svc.db.get_version(vid)
+    assert out is not None
+    return out
+
+
+def _camera_version(svc: Service, mid: int, version_id: int | None) -> dict[str, Any] | None:
+    """The camera log's version (the latest when ``version_id`` is None); None for a camera log
+    stored before camera versions existed (its model is the base one)."""
+    if version_id is None and not svc.db.list_versions(mid):
+        return None
+    return load_version_record(svc.db, mid, version_id)
+
+
+async def _refit_camera(
+    svc: Service,
+    who: Principal,
+    rec: dict[str, Any],
+    version_id: int | None,
+    free: list[str] | None,
+    add_effect: str | None,
+) -> dict[str, Any]:
+    """Fit or add-effect on a camera log: a new version of its camera model."""
+    mid = int(rec["id"])
+    v = _camera_version(svc, mid, version_id)
+    if v is None:  # a camera log stored before camera versions: its base version first
+        first = await svc.work.run(who, heavy_camera.first_version, rec["name"], rec["csv"])
+        v = svc.db.get_version(svc.db.add_version(mid, None, "base", first["model"], first["fit"]))
+        assert v is not None
+    effects = list(v["model"].get("effects") or [])
+    if add_effect is not None:
+        if add_effect not in CAMERA_EFFECTS:
+            raise ConfigError(
+                f"unknown camera effect {add_effect!r}; camera effects are {', '.join(CAMERA_EFFECTS)}"
+            )
+        if add_effect in effects:
+            raise ConfigError(f"version {v['id']} already has {add_effect!r}")
+        label = f"+{add_effect}"
+    else:
+        label = "refit" if not effects else f"refit ({', '.join(effects)})"
+    new = await svc.work.run(who, heavy_camera.refit, rec["csv"], rec["name"], v["model"], free, add_effect)
     vid = svc.db.add_version(mid, v["id"], label, new["model"], new["fit"])
     out = svc.db.get_version(vid)
     assert out is not None

@@ -46,8 +46,9 @@ export async function selectMeasurement(id) {
   for (const li of document.querySelectorAll("#meas-list li")) li.classList.toggle("selected", +li.dataset.id === id);
   $("diag-cards").innerHTML = ""; $("diag-notes").innerHTML = ""; $("wb-verdict").textContent = ""; $("wb-error").textContent = "";
   const canEdit = session.can("engineer");
-  // a camera log is compared and diagnosed with the camera model; fit and design are DC-only here
-  $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit || isCamera(); $("wb-design").disabled = !canEdit || isCamera();
+  // a camera log has versions of the camera model (compare, diagnose, fit, add effect); a
+  // controller design is for a voltage-driven axis only
+  $("wb-diagnose").disabled = !canEdit; $("wb-fit").disabled = !canEdit; $("wb-design").disabled = !canEdit || isCamera();
   await loadVersions();
   await compare();
 }
@@ -150,9 +151,10 @@ async function compare(versionId) {
   if (versionId) body.version_id = versionId;
   const m = await post(`/workbench/measurements/${selected}/compare`, body);
   const n = versions.findIndex((v) => v.id === m.version_id) + 1;
-  $("wb-title").textContent = m.kind === "camera"
-    ? `Measurement #${selected} (camera log) vs the base camera model (${(m.model.effects || []).join(", ") || "linear speed table, no latency"})`
-    : `Measurement #${selected} vs ${m.version_label} (v${n})`;
+  const camModel = m.kind === "camera" ? ` — camera model: ${(m.model.effects || []).join(", ") || "linear speed table, no latency"}` : "";
+  $("wb-title").textContent = m.version_id
+    ? `Measurement #${selected}${m.kind === "camera" ? " (camera log)" : ""} vs ${m.version_label} (v${n})${camModel}`
+    : `Measurement #${selected} (camera log) vs the base camera model${camModel}`;
   for (const li of document.querySelectorAll("#version-list li")) li.classList.toggle("selected", +li.dataset.vid === m.version_id);
   const s = m.series;
   setData($("plot-overlay"), [s.t_s, s.measured_deg, s.model_deg]);
@@ -236,7 +238,7 @@ export async function diagnose() {
         const poor = se && Math.abs(se) > 0.1 * Math.abs(v);
         return `${esc(k)} = ${Number(v).toPrecision(4)}${se ? ` ± ${Number(se).toPrecision(2)}` : ""}${poor ? ` <span class="badge warn" title="standard error above 10 % of the value${c.experiment ? `; to pin it: ${esc(c.experiment)}` : ""}">poorly determined</span>` : ""}`;
       }).join("<br>")}</div>
-      <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") && d.kind !== "camera" ? "" : "disabled"}>Add effect</button>
+      <button class="small ${c.effect === d.verdict ? "primary" : ""}" data-add="${esc(c.effect)}" ${session.can("engineer") ? "" : "disabled"}>Add effect</button>
     </div>`).join("");
     $("diag-notes").innerHTML = (d.notes || []).map(esc).join("<br>");
     for (const b of document.querySelectorAll("[data-add]")) b.onclick = () => addEffect(b.dataset.add);

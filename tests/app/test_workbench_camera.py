@@ -27,7 +27,7 @@ def test_camera_log_upload_diagnose_and_compare(rig: Rig, latency_csv: str) -> N
     r = upload(rig, latency_csv, name="ptz.csv")
     assert r.status_code == 201, r.text
     rec = r.json()
-    assert rec["kind"] == "camera" and rec["first_version_id"] is None
+    assert rec["kind"] == "camera" and rec["first_version_id"] is not None
     assert rec["n"] == latency_csv.count("\n") - 1
     listed = {m["id"]: m for m in rig.client.get(f"{API}/measurements", headers=rig.h("viewer")).json()}
     assert listed[rec["id"]]["kind"] == "camera"
@@ -50,8 +50,41 @@ def test_camera_log_upload_diagnose_and_compare(rig: Rig, latency_csv: str) -> N
 
     m = rig.client.get(f"{API}/measurements/{rec['id']}", headers=rig.h("viewer")).json()
     assert m["kind"] == "camera" and len(m["series"]["speed_cmd"]) == len(m["series"]["t_s"])
-    f = rig.client.post(f"{API}/measurements/{rec['id']}/fit", json={}, headers=rig.h("engineer"))
-    assert f.status_code == 422 and "camera log" in f.json()["detail"]
+
+
+def test_camera_log_versions_show_the_error_fall(rig: Rig, latency_csv: str) -> None:
+    """The loop on a camera log: the base version misses the hidden latency, the diagnosis names
+    it, adding it makes a new version whose fitted latency is the generator's (command + report
+    latency) and whose error fell; the new version's diagnosis has nothing left to add."""
+    truth = random_truth(random.Random(7), latency=True)
+    r = upload(rig, latency_csv, name="ptz-versions.csv")
+    mid, v1 = r.json()["id"], r.json()["first_version_id"]
+    base = rig.client.get(f"{API}/versions/{v1}", headers=rig.h("viewer")).json()
+    assert base["model"]["kind"] == "camera" and base["model"]["effects"] == []
+    eng = rig.h("engineer")
+    d = rig.client.post(f"{API}/measurements/{mid}/diagnose", json={"version_id": v1}, headers=eng).json()
+    assert d["verdict"] == "latency" and d["version_id"] == v1
+
+    a = rig.client.post(f"{API}/measurements/{mid}/add-effect", json={"effect": "latency"}, headers=eng)
+    assert a.status_code == 201, a.text
+    v2 = a.json()
+    assert v2["label"] == "+latency" and v2["parent_id"] == v1 and v2["model"]["effects"] == ["latency"]
+    fitted = v2["model"]["params"]["latency.seconds"]
+    true = truth.latency_s
+    assert abs(fitted - true) < 0.25 * truth.period_s + 0.01, (fitted, true)
+    assert v2["fit"]["rms_deg"] < 0.5 * base["fit"]["rms_deg"]
+
+    d2 = rig.client.post(f"{API}/measurements/{mid}/diagnose", json={}, headers=eng).json()
+    assert d2["version_id"] == v2["id"] and d2["verdict"] is None, d2["candidates"][:2]
+    c = rig.client.post(f"{API}/measurements/{mid}/compare", json={"version_id": v1}, headers=rig.h("viewer"))
+    assert c.json()["version_id"] == v1 and c.json()["rms_deg"] > 2 * d2["rms_deg"]
+    listed = rig.client.get(f"{API}/measurements/{mid}/versions", headers=rig.h("viewer")).json()
+    assert [v["label"] for v in listed] == ["base", "+latency"]
+
+    for bad, why in (("offset", "unknown camera effect"), ("latency", "already has")):
+        e = rig.client.post(f"{API}/measurements/{mid}/add-effect", json={"effect": bad}, headers=eng)
+        assert e.status_code == 422 and why in e.json()["detail"], e.text
+    assert len(rig.client.get(f"{API}/measurements/{mid}/versions", headers=rig.h("viewer")).json()) == 2
 
 
 def test_bad_camera_log_is_400_naming_the_line(rig: Rig, latency_csv: str) -> None:
