@@ -5,6 +5,16 @@ late by more than 2 ms and overruns, idle and under load.
 
     python bench/bench_loop_under_load.py [--tree PATH] [--chunk-ms 10] [--seconds 20]
                                           [--viewers 50] [--rest 600] [--diagnoses 2]
+                                          [--priority 50] [--service-priority 10]
+                                          [--camera [--camera-rate-hz 25]] [--alone]
+
+Ticks: the largest gap between tick starts, each tick's lateness against its due time (the
+loop's deadlines replayed: p99, max, how many over 2 ms), overruns, the longest tick body; the
+service's garbage collections. ``--camera`` steers ``tracker camera-emulator`` (its own
+process) over VISCA on UDP and adds the command cycles' gaps and missed periods; ``--alone``
+runs the same engine on the twin alone in a process of its own, under the same load (what a
+loop in its own process would get); ``--web-fifo N`` (diagnostic) moves the service's other
+threads into SCHED_FIFO N from outside at the load's start.
 
 ``--tree`` runs the service from another checkout (e.g. main, for the figures before); the
 service gets ``TRACKER_CONTROL_CHUNK_MS`` (a tree without that setting ignores it). Control
@@ -47,6 +57,15 @@ def step_chunk(self):
     finally:
         _ends.append(time.perf_counter())
 engine_module.Engine.step_chunk = step_chunk
+_gc = array.array("d")  # garbage collections: start, duration, generation (all threads)
+_gc_start = [0.0]
+def _on_gc(phase, info):
+    if phase == "start":
+        _gc_start[0] = time.perf_counter()
+    else:
+        _gc.extend((_gc_start[0], time.perf_counter() - _gc_start[0], info["generation"]))
+import gc
+gc.callbacks.append(_on_gc)
 _cmds = array.array("d")  # a PTZ camera's command cycles (each sends one steering command)
 try:
     import tracker.drivers.visca as visca_module
@@ -63,6 +82,7 @@ def _dump():
         _ticks.tofile(f)
         _ends.tofile(f)
         _cmds.tofile(f)
+        _gc.tofile(f)
 if __name__ == "__main__":  # not in the service's spawned worker processes
     atexit.register(_dump)
     from tracker.cli import main
@@ -173,11 +193,25 @@ async def rest_burst(api: str, h: dict[str, str], n: int, concurrency: int, refu
     return time.perf_counter() - t0
 
 
-def read_ticks(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The probe's dump: (tick starts, tick ends, camera command cycles), perf_counter seconds."""
+def read_ticks(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The probe's dump: (tick starts, tick ends, camera command cycles, garbage collections as
+    rows of start, duration, generation), perf_counter seconds."""
     raw = np.frombuffer(path.read_bytes(), dtype=np.float64) if path.exists() else np.zeros(3)
     n_t, n_e, n_c = (int(x) for x in raw[:3])
-    return raw[3 : 3 + n_t], raw[3 + n_t : 3 + n_t + n_e], raw[3 + n_t + n_e : 3 + n_t + n_e + n_c]
+    a, b, c = 3 + n_t, 3 + n_t + n_e, 3 + n_t + n_e + n_c
+    gcs = raw[c:]
+    return raw[3:a], raw[a:b], raw[b:c], gcs[: gcs.size // 3 * 3].reshape(-1, 3)
+
+
+def gc_figures(gcs: np.ndarray, t0: float, t1: float) -> dict[str, float]:
+    """The service's garbage collections in [t0, t1] (a collection holds the interpreter lock)."""
+    sel = gcs[(gcs[:, 0] >= t0) & (gcs[:, 0] <= t1)] if gcs.size else gcs
+    out: dict[str, float] = {"collections": int(sel.shape[0])}
+    for gen in (0, 1, 2):
+        g = sel[sel[:, 2] == gen] if sel.size else sel
+        out[f"gen{gen}"] = int(g.shape[0])
+        out[f"gen{gen}_max_ms"] = 1e3 * float(g[:, 1].max()) if g.size else 0.0
+    return out
 
 
 def command_figures(cmds: np.ndarray, t0: float, t1: float, period_s: float) -> dict[str, float]:
@@ -325,6 +359,8 @@ def main() -> int:
     parser.add_argument("--tree", default=str(ROOT), help="checkout to run the service from")
     parser.add_argument("--chunk-ms", type=float, default=10.0, help="the control tick (ms)")
     parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the loop thread")
+    parser.add_argument("--service-priority", type=int, default=0,
+                        help="service_threads_priority: SCHED_FIFO for the service's other threads")
     parser.add_argument(
         "--web-fifo", type=int, default=0,
         help="diagnostic: SCHED_FIFO priority for the service's other threads at the load's start")
@@ -366,6 +402,8 @@ def main() -> int:
             "TRACKER_CONTROL_CHUNK_MS": f"{args.chunk_ms:g}",
             "TRACKER_CONTROL_LOOP_PRIORITY": str(args.priority),
         }
+        if args.service_priority:  # a tree without the setting would refuse it
+            env["TRACKER_SERVICE_THREADS_PRIORITY"] = str(args.service_priority)
         emulator: subprocess.Popen[bytes] | None = None
         if args.camera:
             cam_port = free_port()
@@ -421,13 +459,13 @@ def main() -> int:
                 except subprocess.TimeoutExpired:
                     emulator.kill()
                     emulator.wait(10)
-        ticks, ends, cmds = read_ticks(ticks_file)
-        alone_ticks, alone_ends, _ = read_ticks(alone_file)
+        ticks, ends, cmds, gcs = read_ticks(ticks_file)
+        alone_ticks, alone_ends, _, _ = read_ticks(alone_file)
     period = args.chunk_ms / 1e3
     load_avg = os.getloadavg()
     print(
         f"tree {args.tree}, {'camera' if args.camera else 'twin'}, tick {args.chunk_ms:g} ms, "
-        f"priority {args.priority}, nice {args.nice}, "
+        f"priority {args.priority}, service threads {args.service_priority}, nice {args.nice}, "
         f"{args.viewers} viewers, "
         f"{args.rest} REST calls ({res['refused']} refused with 429) "
         f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
@@ -462,6 +500,8 @@ def main() -> int:
         f"load started at {t0:.3f}; gaps over 50 ms at (s after, ms): "
         + ", ".join(f"+{a:.2f} {g:.0f}" for a, g in big[:20])
     )
+    gf = gc_figures(gcs, t0, t1)
+    print(f"load  garbage collections: {json.dumps({k: round(v, 2) for k, v in gf.items()})}")
     ff = frame_figures(res["viewers"], t0, t1)
     print(f"load  telemetry frames: {json.dumps({k: round(v, 2) for k, v in ff.items()})}")
     if res["status_loop"] is not None:
