@@ -347,7 +347,7 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
     stop.set()
     await asyncio.gather(*tasks, return_exceptions=True)
     try:  # let the service finish its diagnosis before it is stopped (bounded)
-        await asyncio.wait_for(job, timeout=300.0)
+        await asyncio.wait_for(job, timeout=60.0)
     except (TimeoutError, httpx.HTTPError):
         pass
     out["viewers"] = views
@@ -441,7 +441,14 @@ def main() -> int:
                          "BENCH_CHUNK_S": str(args.chunk_ms / 1e3), "BENCH_PRIORITY": str(args.priority)},
                     cwd=tmp,
                 )
-            res = asyncio.run(bench(args, api, f"ws://127.0.0.1:{port}/api/v1/telemetry", key, csv))
+            loop = asyncio.new_event_loop()
+            try:
+                res = loop.run_until_complete(
+                    bench(args, api, f"ws://127.0.0.1:{port}/api/v1/telemetry", key, csv))
+            finally:  # a client task stuck in its clean-up must not hold up the figures
+                for task in asyncio.all_tasks(loop):
+                    task.cancel()
+                loop.close()
         finally:
             if alone is not None:
                 alone.terminate()
