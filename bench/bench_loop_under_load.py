@@ -84,6 +84,8 @@ def _dump():
         _cmds.tofile(f)
         _gc.tofile(f)
 if __name__ == "__main__":  # not in the service's spawned worker processes
+    import signal
+    signal.signal(signal.SIGUSR1, lambda *_: _dump())  # the bench asks before it stops the service
     atexit.register(_dump)
     from tracker.cli import main
     sys.exit(main(sys.argv[1:]))
@@ -418,6 +420,7 @@ def main() -> int:
             cwd=tmp,
             stdout=subprocess.DEVNULL,
             preexec_fn=(lambda: os.nice(args.nice)) if args.nice else None,
+            start_new_session=True,  # its worker processes go with it if it must be killed
         )
         api = f"http://127.0.0.1:{port}/api/v1"
         try:
@@ -450,6 +453,11 @@ def main() -> int:
                     task.cancel()
                 loop.close()
         finally:
+            proc.send_signal(signal.SIGUSR1)  # the probe writes the ticks now: the service may
+            end = time.monotonic() + 30.0     # not stop in time with a diagnosis still running
+            while not ticks_file.exists() and time.monotonic() < end and proc.poll() is None:
+                time.sleep(0.1)
+            time.sleep(0.5)  # let it finish writing
             if alone is not None:
                 alone.terminate()
                 alone.wait(30)
@@ -457,7 +465,7 @@ def main() -> int:
             try:
                 proc.wait(60)
             except subprocess.TimeoutExpired:
-                proc.kill()
+                os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait(10)
             if emulator is not None:
                 emulator.send_signal(signal.SIGINT)
