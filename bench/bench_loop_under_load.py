@@ -57,6 +57,9 @@ def step_chunk(self):
     finally:
         _ends.append(time.perf_counter())
 engine_module.Engine.step_chunk = step_chunk
+if os.environ.get("BENCH_SPIN_S"):  # --spin-ms: the loop's busy-wait before each tick
+    import tracker.realtime as realtime_module
+    realtime_module.PacedLoop.__init__.__kwdefaults__["spin_s"] = float(os.environ["BENCH_SPIN_S"])
 _gc = array.array("d")  # garbage collections: start, duration, generation (all threads)
 _gc_start = [0.0]
 def _on_gc(phase, info):
@@ -361,6 +364,8 @@ def main() -> int:
     parser.add_argument("--tree", default=str(ROOT), help="checkout to run the service from")
     parser.add_argument("--chunk-ms", type=float, default=10.0, help="the control tick (ms)")
     parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the loop thread")
+    parser.add_argument("--spin-ms", type=float, default=None,
+                        help="the loop's busy-wait before each tick (default: the tree's own)")
     parser.add_argument("--service-priority", type=int, default=0,
                         help="service_threads_priority: SCHED_FIFO for the service's other threads")
     parser.add_argument(
@@ -404,6 +409,8 @@ def main() -> int:
             "TRACKER_CONTROL_CHUNK_MS": f"{args.chunk_ms:g}",
             "TRACKER_CONTROL_LOOP_PRIORITY": str(args.priority),
         }
+        if args.spin_ms is not None:
+            env["BENCH_SPIN_S"] = str(args.spin_ms / 1e3)
         if args.service_priority:  # a tree without the setting would refuse it
             env["TRACKER_SERVICE_THREADS_PRIORITY"] = str(args.service_priority)
         emulator: subprocess.Popen[bytes] | None = None
@@ -480,7 +487,8 @@ def main() -> int:
     load_avg = os.getloadavg()
     print(
         f"tree {args.tree}, {'camera' if args.camera else 'twin'}, tick {args.chunk_ms:g} ms, "
-        f"priority {args.priority}, service threads {args.service_priority}, nice {args.nice}, "
+        f"priority {args.priority}, service threads {args.service_priority}, spin {args.spin_ms} ms, "
+        f"nice {args.nice}, "
         f"{args.viewers} viewers, "
         f"{args.rest} REST calls ({res['refused']} refused with 429) "
         f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
