@@ -348,7 +348,8 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
     out["rest_s"] = rest_s
     out["log"] = log
     async with httpx.AsyncClient(timeout=30.0) as c:
-        out["status_loop"] = (await c.get(f"{api}/status", headers=h)).json().get("loop")
+        status = (await c.get(f"{api}/status", headers=h)).json()
+        out["status_loop"], out["status_driver"] = status.get("loop"), status.get("driver")
     stop.set()
     await asyncio.gather(*tasks, return_exceptions=True)
     try:  # let the service finish its diagnosis before it is stopped (bounded)
@@ -529,6 +530,9 @@ def main() -> int:
     print(f"load  telemetry frames: {json.dumps({k: round(v, 2) for k, v in ff.items()})}")
     if res["status_loop"] is not None:
         print(f"/status loop (since start): {json.dumps(res['status_loop'])}")
+    if args.camera and res["status_driver"] is not None:
+        d = {k: res["status_driver"].get(k) for k in ("achieved_rate_hz", "missed_periods", "rtt_ms_p95")}
+        print(f"/status driver (since start): {json.dumps(d)}")
     return 0
 
 

@@ -114,6 +114,7 @@ class ViscaCamera:
         self._inflight: set[asyncio.Task[Any]] = set()
         self._cycle_times: list[float] = []
         self.cycles = 0
+        self.missed_periods = 0  # command periods that passed without a cycle (a late loop)
         self.connects = 0
 
     # -- CameraDriver ---------------------------------------------------------------------------
@@ -277,6 +278,7 @@ class ViscaCamera:
             "steering": self.steering,
             "command_rate_hz": round(1.0 / self._period, 2),
             "achieved_rate_hz": None if rate is None else round(rate, 2),
+            "missed_periods": self.missed_periods,
             "rtt_ms_median": _round(stats.rtt_percentile_ms(50)),
             "rtt_ms_p95": _round(stats.rtt_percentile_ms(95)),
             "sent": stats.sent,
@@ -403,11 +405,15 @@ class ViscaCamera:
     async def _cycle_until_lost(self) -> str:
         loop = asyncio.get_running_loop()
         next_t = loop.time()
+        previous: float | None = None  # this connection's previous cycle
         while True:
             now = time.monotonic()
             if now - self._last_answer > self._link_lost_s:
                 return f"no answer for {now - self._last_answer:.1f} s"
             self.cycles += 1
+            if previous is not None:  # whole periods that passed without a cycle
+                self.missed_periods += max(0, int((now - previous) / self._period + 1e-6) - 1)
+            previous = now
             self._cycle_times = [*self._cycle_times[-RATE_WINDOW:], now]
             self._spawn(self._poll_position())
             self._spawn(self._steer())
