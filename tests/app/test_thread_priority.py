@@ -63,3 +63,28 @@ def test_a_service_priority_not_below_the_loop_is_refused(tmp_path: Path) -> Non
         load_settings(None, data_dir=str(tmp_path), control_loop_priority=10, service_threads_priority=10)
     with pytest.raises(ConfigError, match="service_threads_priority"):
         load_settings(None, data_dir=str(tmp_path), service_threads_priority=3)  # loop at 0
+
+
+def test_a_refused_priority_leaves_the_threads_as_they_were(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Without CAP_SYS_NICE or RLIMIT_RTPRIO (a unit without LimitRTPRIO) the service keeps
+    serving in the normal class, says so in the log, and the status says 0."""
+    import tracker.realtime
+
+    calls: list[int] = []
+
+    def refuse(priority: int) -> tuple[int, str | None]:
+        calls.append(priority)
+        return 0, "[Errno 1] Operation not permitted"
+
+    monkeypatch.setattr(tracker.realtime, "raise_process_threads", refuse)
+    rigs = make_rig(tmp_path, control_loop_priority=20, service_threads_priority=4)
+    rig = next(rigs)
+    try:
+        status = poll(lambda: calls and rig.client.get(f"{API}/status", headers=rig.h("viewer")).json())
+        assert calls == [4] and status["loop"]["service_threads_priority"] == 0
+        assert rig.client.get(f"{API}/health").status_code == 200
+    finally:
+        rigs.close()  # the service stops
+    assert any("service_threads_priority 4 refused" in r.message for r in caplog.records)
