@@ -47,7 +47,8 @@ def build_camera(settings: Settings) -> Any:
 
     limits = guard_lines_rad(settings)
     return ViscaCamera(parse_driver_url(settings.driver), get_profile(settings.camera_profile), limits,
-                       rate_hz=settings.camera_rate_hz, steering=settings.camera_steering)
+                       rate_hz=settings.camera_rate_hz, steering=settings.camera_steering,
+                       own_thread=True)  # its command cycle off the web event loop
 
 
 def guard_lines_rad(settings: Settings) -> dict[str, tuple[float, float]]:

@@ -37,6 +37,8 @@ class LoopOut(BaseModel):
     restarts: int = Field(description="times the loop fell over 0.1 s behind and dropped ticks")
     in_thread: bool = Field(description="the loop runs in its own thread (real time)")
     priority: int = Field(0, description="the loop thread's SCHED_FIFO priority (0: normal scheduling)")
+    service_threads_priority: int = Field(
+        0, description="the SCHED_FIFO priority of the service's other threads (0: normal scheduling)")
     last_tick_ms_ago: float | None = Field(
         None, description="since the latest tick started (null before the first); /health says 503 "
                           "past health_stall_s")

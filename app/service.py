@@ -69,6 +69,8 @@ class Service:
         self.audio_note: str | None = None
         self._engine_task: asyncio.Task[None] | None = None
         self.engine_started_s = math.nan  # time.perf_counter() when the engine's loop was started
+        self.threads_priority = 0  # the SCHED_FIFO priority the service's threads got (0: none)
+        self._threads_task: asyncio.Task[None] | None = None
         self.metrics.watch(self)
 
     def _job_progress(self, job_id: int, fraction: float, message: str) -> None:
@@ -85,6 +87,8 @@ class Service:
         # loop's thread, for up to a second.
         gc.collect()
         gc.freeze()
+        if s.service_threads_priority > 0:
+            self._threads_task = asyncio.create_task(self._keep_threads_priority(), name="priority")
         self._engine_task = asyncio.create_task(self._run_engine(), name="engine")
         self.engine_started_s = time.perf_counter()
         self.hub.start(self.engine)
@@ -107,6 +111,24 @@ class Service:
                 log.error("3D view not started (%s:%d): %s", s.viewer_host, s.viewer_port, exc)
                 self.viewer = None
 
+    async def _keep_threads_priority(self, every_s: float = 1.0) -> None:
+        """service_threads_priority: the service's threads in SCHED_FIFO, below the loop's, so
+        one holding the interpreter lock is not preempted by other processes (docs/console.md).
+        A thread started later begins in the normal class (SCHED_RESET_ON_FORK, which keeps the
+        worker processes there too): swept in every ``every_s``."""
+        from tracker.realtime import raise_process_threads
+
+        priority = self.settings.service_threads_priority
+        while self.engine.timing().ticks == 0:  # the loop's thread first takes its own priority
+            await asyncio.sleep(0.05)
+        while True:
+            _, refusal = raise_process_threads(priority)  # ~0.1 ms
+            if refusal is not None:
+                log.warning("service_threads_priority %d refused (%s): normal scheduling", priority, refusal)
+                return
+            self.threads_priority = priority
+            await asyncio.sleep(every_s)
+
     async def _run_engine(self) -> None:
         try:
             await self.engine.run(realtime=self.settings.realtime)
@@ -123,6 +145,8 @@ class Service:
         self.lock.release_key(key_id)
 
     async def stop(self) -> None:
+        if self._threads_task is not None:
+            self._threads_task.cancel()
         self.work.close()
         await self.jobs.shutdown()
         await asyncio.to_thread(self.pool.shutdown)

@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError, field_validator
+from pydantic import Field, ValidationError, ValidationInfo, field_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from tracker.errors import ConfigError
@@ -98,6 +98,13 @@ class Settings(BaseSettings):
         0, ge=0, le=99,
         description="SCHED_FIFO priority of the control loop's thread on Linux (0: normal scheduling); "
                     "needs CAP_SYS_NICE (systemd: CPUSchedulingPolicy/LimitRTPRIO), ignored if refused")
+    service_threads_priority: int = Field(
+        0, ge=0, le=98,
+        description="SCHED_FIFO priority of the service's other threads (web, telemetry; 0: normal "
+                    "scheduling), below control_loop_priority: a thread holding the interpreter lock "
+                    "is then not preempted by other processes, which would hold up the loop's tick "
+                    "(docs/console.md); worker processes still run in the normal class; ignored if "
+                    "refused")
     telemetry_rate_hz: float = Field(100.0, ge=50.0, le=1000.0, description="WebSocket frame rate")
     jog_timeout_s: float = Field(0.5, gt=0.0, le=5.0, description="a jog stops by itself after this")
     control_lock_ttl_s: float = Field(30.0, gt=0.0, description="manual control lapses when idle this long")
@@ -138,6 +145,15 @@ class Settings(BaseSettings):
         "ticked for longer than this")
     audit_max_rows: int = Field(100_000, ge=100, description="the audit log keeps this many newest entries")
     log_level: Literal["debug", "info", "warning", "error"] = "info"
+
+    @field_validator("service_threads_priority")
+    @classmethod
+    def _check_service_threads_priority(cls, value: int, info: ValidationInfo) -> int:
+        loop = info.data.get("control_loop_priority", 0)  # declared before: validated first
+        if value > 0 and not value < loop:
+            raise ValueError(f"{value} must be below control_loop_priority ({loop}): the loop's "
+                             "thread must come first")
+        return value
 
     @field_validator("audio_input")
     @classmethod

@@ -6,12 +6,14 @@ share the interpreter lock with it (the numba kernels hold it for seconds), so h
 half-way). At most ``workers + queue`` requests are admitted at once and at most ``per_key`` of
 them from one key; the next one gets 429 with a Retry-After from the recent mean duration.
 A worker that dies (out of memory) costs its request a 503 and the pool is started again.
+The workers run ``app.workers.WORKER_NICE`` steps nicer than the service.
 """
 
 from __future__ import annotations
 
 import asyncio
 import multiprocessing
+import os
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -23,6 +25,23 @@ from app.auth import Principal
 from app.errors import TooManyRequests, Unavailable
 
 T = TypeVar("T")
+
+
+def _init_heavy_worker(effects: str) -> None:
+    """A heavy worker's start: the site's effects, and background priority (like the job
+    workers: on a busy machine the service's threads, and the loop, get the CPU first)."""
+    from app.workers import WORKER_NICE
+
+    load_site_effects(effects)
+    try:
+        os.nice(WORKER_NICE)
+    except (AttributeError, OSError):
+        pass
+
+
+def worker_niceness() -> int:
+    """This process's niceness (run in a worker by the tests)."""
+    return os.nice(0)
 
 
 def load_site_effects(effects: str) -> None:
@@ -118,7 +137,7 @@ class WorkPool:
         if self._executor is None:
             spawn = multiprocessing.get_context("spawn")
             self._executor = ProcessPoolExecutor(
-                self.workers, mp_context=spawn, initializer=load_site_effects, initargs=(self.effects,)
+                self.workers, mp_context=spawn, initializer=_init_heavy_worker, initargs=(self.effects,)
             )
         return self._executor
 

@@ -5,6 +5,16 @@ late by more than 2 ms and overruns, idle and under load.
 
     python bench/bench_loop_under_load.py [--tree PATH] [--chunk-ms 10] [--seconds 20]
                                           [--viewers 50] [--rest 600] [--diagnoses 2]
+                                          [--priority 50] [--service-priority 10]
+                                          [--camera [--camera-rate-hz 25]] [--alone]
+
+Ticks: the largest gap between tick starts, each tick's lateness against its due time (the
+loop's deadlines replayed: p99, max, how many over 2 ms), overruns, the longest tick body; the
+service's garbage collections. ``--camera`` steers ``tracker camera-emulator`` (its own
+process) over VISCA on UDP and adds the command cycles' gaps and missed periods; ``--alone``
+runs the same engine on the twin alone in a process of its own, under the same load (what a
+loop in its own process would get); ``--web-fifo N`` (diagnostic) moves the service's other
+threads into SCHED_FIFO N from outside at the load's start.
 
 ``--tree`` runs the service from another checkout (e.g. main, for the figures before); the
 service gets ``TRACKER_CONTROL_CHUNK_MS`` (a tree without that setting ignores it). Control
@@ -39,17 +49,66 @@ import array, atexit, os, sys, time
 import tracker.engine as engine_module
 _ticks = array.array("d")
 _step = engine_module.Engine.step_chunk
+_ends = array.array("d")
 def step_chunk(self):
     _ticks.append(time.perf_counter())
-    return _step(self)
+    try:
+        return _step(self)
+    finally:
+        _ends.append(time.perf_counter())
 engine_module.Engine.step_chunk = step_chunk
+if os.environ.get("BENCH_SPIN_S"):  # --spin-ms: the loop's busy-wait before each tick
+    import tracker.realtime as realtime_module
+    realtime_module.PacedLoop.__init__.__kwdefaults__["spin_s"] = float(os.environ["BENCH_SPIN_S"])
+_gc = array.array("d")  # garbage collections: start, duration, generation (all threads)
+_gc_start = [0.0]
+def _on_gc(phase, info):
+    if phase == "start":
+        _gc_start[0] = time.perf_counter()
+    else:
+        _gc.extend((_gc_start[0], time.perf_counter() - _gc_start[0], info["generation"]))
+import gc
+gc.callbacks.append(_on_gc)
+_cmds = array.array("d")  # a PTZ camera's command cycles (each sends one steering command)
+try:
+    import tracker.drivers.visca as visca_module
+    _steer = visca_module.ViscaCamera._steer
+    async def _steer_probe(self):
+        _cmds.append(time.perf_counter())
+        await _steer(self)
+    visca_module.ViscaCamera._steer = _steer_probe
+except ImportError:  # a tree without the camera driver
+    pass
 def _dump():
     with open(os.environ["BENCH_TICKS"], "wb") as f:
+        array.array("d", [len(_ticks), len(_ends), len(_cmds)]).tofile(f)
         _ticks.tofile(f)
+        _ends.tofile(f)
+        _cmds.tofile(f)
+        _gc.tofile(f)
 if __name__ == "__main__":  # not in the service's spawned worker processes
+    import signal
+    signal.signal(signal.SIGUSR1, lambda *_: _dump())  # the bench asks before it stops the service
     atexit.register(_dump)
     from tracker.cli import main
     sys.exit(main(sys.argv[1:]))
+"""
+
+# --alone: the same engine on the twin, alone in a process of its own (no web side), run during
+# the bench under the same load: what a control loop in its own process would get here.
+ALONE = """
+import asyncio, os, signal, sys, time
+sys.argv = [sys.argv[0]]
+exec(open(os.environ["BENCH_PROBE"]).read().split("if __name__")[0])
+from tracker.drivers.sim import SimDriver
+from tracker.engine import Engine, EngineConfig
+engine = Engine(SimDriver(), EngineConfig(chunk_s=float(os.environ["BENCH_CHUNK_S"]),
+                                          loop_priority=int(os.environ["BENCH_PRIORITY"])))
+async def main():
+    asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, engine.stop)
+    await engine.run(realtime=True)
+asyncio.run(main())
+_dump()
 """
 
 
@@ -86,21 +145,32 @@ async def viewer(url: str, key: str, v: Viewer, stop: asyncio.Event) -> None:
                 v.arrivals.append(time.perf_counter())
 
 
+async def post_retrying(c: httpx.AsyncClient, url: str, **kw: Any) -> httpx.Response:
+    """POST, waiting out 429s (the heavy pool is shared with the burst's gains calls) as a
+    client would: Retry-After, at most 60 tries."""
+    for _ in range(60):
+        r = await c.post(url, **kw)
+        if r.status_code != 429:
+            break
+        await asyncio.sleep(min(2.0, float(r.headers.get("retry-after", "0.5") or 0.5)))
+    r.raise_for_status()
+    return r
+
+
 async def workbench(api: str, h: dict[str, str], csv: str, n: int, log: list[str]) -> None:
     async with httpx.AsyncClient(timeout=300.0) as c:
         for i in range(n):
             t0 = time.perf_counter()
-            r = await c.post(
+            r = await post_retrying(
+                c,
                 f"{api}/workbench/measurements",
                 headers=h,
                 data={"axis": "pan"},
                 files={"file": (f"bench{i}.csv", csv.encode(), "text/csv")},
             )
-            r.raise_for_status()
             mid = r.json()["id"]
             t1 = time.perf_counter()
-            r = await c.post(f"{api}/workbench/measurements/{mid}/diagnose", headers=h, json={})
-            r.raise_for_status()
+            r = await post_retrying(c, f"{api}/workbench/measurements/{mid}/diagnose", headers=h, json={})
             log.append(
                 f"upload {t1 - t0:.1f} s, diagnose {time.perf_counter() - t1:.1f} s (started at {t0:.3f})"
             )
@@ -128,20 +198,97 @@ async def rest_burst(api: str, h: dict[str, str], n: int, concurrency: int, refu
     return time.perf_counter() - t0
 
 
-def tick_figures(ticks: np.ndarray, t0: float, t1: float, period_s: float) -> dict[str, float]:
-    sel = ticks[(ticks >= t0) & (ticks <= t1)]
+def read_ticks(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The probe's dump: (tick starts, tick ends, camera command cycles, garbage collections as
+    rows of start, duration, generation), perf_counter seconds."""
+    raw = np.frombuffer(path.read_bytes(), dtype=np.float64) if path.exists() else np.zeros(3)
+    n_t, n_e, n_c = (int(x) for x in raw[:3])
+    a, b, c = 3 + n_t, 3 + n_t + n_e, 3 + n_t + n_e + n_c
+    gcs = raw[c:]
+    return raw[3:a], raw[a:b], raw[b:c], gcs[: gcs.size // 3 * 3].reshape(-1, 3)
+
+
+def gc_figures(gcs: np.ndarray, t0: float, t1: float) -> dict[str, float]:
+    """The service's garbage collections in [t0, t1] (a collection holds the interpreter lock)."""
+    sel = gcs[(gcs[:, 0] >= t0) & (gcs[:, 0] <= t1)] if gcs.size else gcs
+    out: dict[str, float] = {"collections": int(sel.shape[0])}
+    for gen in (0, 1, 2):
+        g = sel[sel[:, 2] == gen] if sel.size else sel
+        out[f"gen{gen}"] = int(g.shape[0])
+        out[f"gen{gen}_max_ms"] = 1e3 * float(g[:, 1].max()) if g.size else 0.0
+    return out
+
+
+def command_figures(cmds: np.ndarray, t0: float, t1: float, period_s: float) -> dict[str, float]:
+    """A PTZ camera's command cycles in [t0, t1]: a *missed period* is a gap of two periods or
+    more (a whole period passed without a command); *late* a gap over 1.5 periods."""
+    sel = cmds[(cmds >= t0) & (cmds <= t1)]
+    gaps = np.diff(sel)
+    if gaps.size == 0:
+        return {"commands": int(sel.size)}
+    return {
+        "commands": int(sel.size),
+        "rate_hz": float(sel.size / (t1 - t0)),
+        "max_gap_ms": 1e3 * float(gaps.max()),
+        "p99_gap_ms": 1e3 * float(np.percentile(gaps, 99)),
+        "late_1.5_periods": int(np.sum(gaps > 1.5 * period_s)),
+        "missed_periods": int(np.sum(np.clip(np.floor(gaps / period_s + 1e-9) - 1, 0, None))),
+    }
+
+
+def boost_threads(pid: int, priority: int) -> int:
+    """Diagnostic: put the service's threads that run in the normal class (all but the loop's
+    when it has its SCHED_FIFO priority) in SCHED_FIFO ``priority``; how many were moved."""
+    moved = 0
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        tid = int(task.name)
+        try:
+            if os.sched_getscheduler(tid) == os.SCHED_OTHER:
+                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+                moved += 1
+        except OSError:
+            pass
+    return moved
+
+
+def lateness(starts: np.ndarray, period_s: float, max_behind_s: float = 0.1) -> np.ndarray:
+    """Each tick's lateness (s), its due times replayed as tracker.realtime.PacedLoop sets them:
+    one period after the previous due time, or, more than ``max_behind_s`` behind, afresh on
+    the grid point before the tick (a restart). The first tick is due at the grid point before it."""
+    late = np.empty(starts.size)
+    due = np.floor(starts[0] / period_s) * period_s if starts.size else 0.0
+    for i, start in enumerate(starts):
+        if i:
+            due += period_s
+        if start - due > max_behind_s:
+            late[i] = start - due
+            due = np.floor(start / period_s) * period_s
+        else:
+            late[i] = max(0.0, start - due)
+    return late
+
+
+def tick_figures(
+    ticks: np.ndarray, ends: np.ndarray, t0: float, t1: float, period_s: float
+) -> dict[str, float]:
+    mask = (ticks >= t0) & (ticks <= t1)
+    sel = ticks[mask]
     gaps = np.diff(sel)
     if gaps.size == 0:
         return {"ticks": 0}
-    # Lateness against the loop's own grid: the earliest tick (relative to k·period) is on time.
-    k = np.arange(sel.size)
-    late = (sel - k * period_s) - np.min(sel - k * period_s)
+    body = ends[: ticks.size][mask[: ends.size]] - sel[: int(np.sum(mask[: ends.size]))]
+    late = lateness(sel, period_s)
     return {
         "ticks": int(sel.size),
         "max_gap_ms": 1e3 * float(gaps.max()),
         "p99_gap_ms": 1e3 * float(np.percentile(gaps, 99)),
         "late_2ms": int(np.sum(gaps > period_s + 2e-3)),
         "overruns": int(np.sum(gaps > 2 * period_s)),
+        "p99_late_ms": 1e3 * float(np.percentile(late, 99)),
+        "max_late_ms": 1e3 * float(late.max()),
+        "due_late_2ms": int(np.sum(late > 2e-3)),
+        "max_body_ms": 1e3 * float(body.max()) if body.size else float("nan"),
+        "p99_body_ms": 1e3 * float(np.percentile(body, 99)) if body.size else float("nan"),
         "drift_ms": 1e3 * float(late[-1]),
     }
 
@@ -182,6 +329,8 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
     tasks = [asyncio.create_task(viewer(ws_url, key, v, stop)) for v in views]
     await asyncio.sleep(1.0)  # all connected
     log: list[str] = []
+    if args.web_fifo:
+        out["boosted"] = boost_threads(args.pid, args.web_fifo)
     t_load0 = time.perf_counter()
     job = asyncio.create_task(workbench(api, h, csv, args.diagnoses, log))
     refused: list[int] = []
@@ -199,11 +348,12 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
     out["rest_s"] = rest_s
     out["log"] = log
     async with httpx.AsyncClient(timeout=30.0) as c:
-        out["status_loop"] = (await c.get(f"{api}/status", headers=h)).json().get("loop")
+        status = (await c.get(f"{api}/status", headers=h)).json()
+        out["status_loop"], out["status_driver"] = status.get("loop"), status.get("driver")
     stop.set()
     await asyncio.gather(*tasks, return_exceptions=True)
     try:  # let the service finish its diagnosis before it is stopped (bounded)
-        await asyncio.wait_for(job, timeout=300.0)
+        await asyncio.wait_for(job, timeout=60.0)
     except (TimeoutError, httpx.HTTPError):
         pass
     out["viewers"] = views
@@ -215,6 +365,19 @@ def main() -> int:
     parser.add_argument("--tree", default=str(ROOT), help="checkout to run the service from")
     parser.add_argument("--chunk-ms", type=float, default=10.0, help="the control tick (ms)")
     parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the loop thread")
+    parser.add_argument("--spin-ms", type=float, default=None,
+                        help="the loop's busy-wait before each tick (default: the tree's own)")
+    parser.add_argument("--service-priority", type=int, default=0,
+                        help="service_threads_priority: SCHED_FIFO for the service's other threads")
+    parser.add_argument(
+        "--web-fifo", type=int, default=0,
+        help="diagnostic: SCHED_FIFO priority for the service's other threads at the load's start")
+    parser.add_argument("--alone", action="store_true",
+                        help="also run the same engine alone in a process of its own, under the same load")
+    parser.add_argument("--camera", action="store_true",
+                        help="steer an emulated PTZ camera (tracker camera-emulator, its own process) "
+                             "over VISCA on UDP instead of the twin")
+    parser.add_argument("--camera-rate-hz", type=float, default=25.0, help="the camera's command rate")
     parser.add_argument("--nice", type=int, default=0, help="run the service this much nicer (<0: less nice)")
     parser.add_argument("--seconds", type=float, default=20.0, help="longest load phase (s)")
     parser.add_argument("--idle-seconds", type=float, default=5.0)
@@ -234,6 +397,8 @@ def main() -> int:
         probe = Path(tmp) / "bench_probe.py"
         probe.write_text(PROBE)
         ticks_file = Path(tmp) / "ticks.bin"
+        alone_file = Path(tmp) / "alone.bin"
+        alone: subprocess.Popen[bytes] | None = None
         env = {
             **os.environ,
             "PYTHONPATH": f"{args.tree}{os.pathsep}{tmp}",
@@ -245,12 +410,25 @@ def main() -> int:
             "TRACKER_CONTROL_CHUNK_MS": f"{args.chunk_ms:g}",
             "TRACKER_CONTROL_LOOP_PRIORITY": str(args.priority),
         }
+        if args.spin_ms is not None:
+            env["BENCH_SPIN_S"] = str(args.spin_ms / 1e3)
+        if args.service_priority:  # a tree without the setting would refuse it
+            env["TRACKER_SERVICE_THREADS_PRIORITY"] = str(args.service_priority)
+        emulator: subprocess.Popen[bytes] | None = None
+        if args.camera:
+            cam_port = free_port()
+            emulator = subprocess.Popen(
+                [sys.executable, "-m", "tracker", "camera-emulator", "--port", str(cam_port)],
+                env={**env, "PYTHONPATH": args.tree}, cwd=tmp, stdout=subprocess.DEVNULL)
+            env["TRACKER_DRIVER"] = f"visca+udp://127.0.0.1:{cam_port}"
+            env["TRACKER_CAMERA_RATE_HZ"] = f"{args.camera_rate_hz:g}"
         proc = subprocess.Popen(
             [sys.executable, str(probe), "serve", "--host", "127.0.0.1", "--port", str(port)],
             env=env,
             cwd=tmp,
             stdout=subprocess.DEVNULL,
             preexec_fn=(lambda: os.nice(args.nice)) if args.nice else None,
+            start_new_session=True,  # its worker processes go with it if it must be killed
         )
         api = f"http://127.0.0.1:{port}/api/v1"
         try:
@@ -265,32 +443,78 @@ def main() -> int:
                     raise SystemExit("the service did not start")
                 time.sleep(0.2)
             key = (Path(tmp) / "data" / "admin.key").read_text().strip()
-            res = asyncio.run(bench(args, api, f"ws://127.0.0.1:{port}/api/v1/telemetry", key, csv))
+            args.pid = proc.pid
+            if args.alone:
+                (Path(tmp) / "alone.py").write_text(ALONE)
+                alone = subprocess.Popen(
+                    [sys.executable, str(Path(tmp) / "alone.py")],
+                    env={**env, "BENCH_TICKS": str(alone_file), "BENCH_PROBE": str(probe),
+                         "BENCH_CHUNK_S": str(args.chunk_ms / 1e3), "BENCH_PRIORITY": str(args.priority)},
+                    cwd=tmp,
+                )
+            loop = asyncio.new_event_loop()
+            try:
+                res = loop.run_until_complete(
+                    bench(args, api, f"ws://127.0.0.1:{port}/api/v1/telemetry", key, csv))
+            finally:  # a client task stuck in its clean-up must not hold up the figures
+                for task in asyncio.all_tasks(loop):
+                    task.cancel()
+                loop.close()
         finally:
+            proc.send_signal(signal.SIGUSR1)  # the probe writes the ticks now: the service may
+            end = time.monotonic() + 30.0     # not stop in time with a diagnosis still running
+            while not ticks_file.exists() and time.monotonic() < end and proc.poll() is None:
+                time.sleep(0.1)
+            time.sleep(0.5)  # let it finish writing
+            if alone is not None:
+                alone.terminate()
+                alone.wait(30)
             proc.send_signal(signal.SIGINT)
             try:
                 proc.wait(60)
             except subprocess.TimeoutExpired:
-                proc.kill()
+                os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait(10)
-        ticks = (
-            np.frombuffer(ticks_file.read_bytes(), dtype=np.float64) if ticks_file.exists() else np.zeros(0)
-        )
+            if emulator is not None:
+                emulator.send_signal(signal.SIGINT)
+                try:
+                    emulator.wait(10)
+                except subprocess.TimeoutExpired:
+                    emulator.kill()
+                    emulator.wait(10)
+        ticks, ends, cmds, gcs = read_ticks(ticks_file)
+        alone_ticks, alone_ends, _, _ = read_ticks(alone_file)
     period = args.chunk_ms / 1e3
     load_avg = os.getloadavg()
     print(
-        f"tree {args.tree}, tick {args.chunk_ms:g} ms, priority {args.priority}, nice {args.nice}, "
+        f"tree {args.tree}, {'camera' if args.camera else 'twin'}, tick {args.chunk_ms:g} ms, "
+        f"priority {args.priority}, service threads {args.service_priority}, spin {args.spin_ms} ms, "
+        f"nice {args.nice}, "
         f"{args.viewers} viewers, "
         f"{args.rest} REST calls ({res['refused']} refused with 429) "
         f"in {res['rest_s']:.1f} s, {args.diagnoses} x (upload {args.measurement_s:g} s log + diagnose) "
         f"{'done' if res['job_done'] else 'still running at the end'}; load average {load_avg[0]:.1f}"
     )
+    if args.web_fifo:
+        print(f"  diagnostic: {res.get('boosted')} other service threads put in SCHED_FIFO {args.web_fifo}")
     for line in res["log"]:
         print(f"  {line}")
     for phase in ("idle", "load"):
         t0, t1 = res[phase]
-        tf = tick_figures(ticks, t0, t1, period)
+        tf = tick_figures(ticks, ends, t0, t1, period)
         print(f"{phase:5s} control ticks: {json.dumps({k: round(v, 2) for k, v in tf.items()})}")
+    if args.alone:
+        for phase in ("idle", "load"):
+            t0, t1 = res[phase]
+            tf = tick_figures(alone_ticks, alone_ends, t0, t1, period)
+            print(f"{phase:5s} ticks of the engine alone in a process: "
+                  f"{json.dumps({k: round(v, 2) for k, v in tf.items()})}")
+    if args.camera:
+        for phase in ("idle", "load"):
+            t0, t1 = res[phase]
+            cf = command_figures(cmds, t0, t1, 1.0 / args.camera_rate_hz)
+            print(f"{phase:5s} camera command cycles ({args.camera_rate_hz:g} Hz): "
+                  f"{json.dumps({k: round(v, 2) for k, v in cf.items()})}")
     t0, t1 = res["load"]
     sel = ticks[(ticks >= t0) & (ticks <= t1)]
     big = [
@@ -300,10 +524,15 @@ def main() -> int:
         f"load started at {t0:.3f}; gaps over 50 ms at (s after, ms): "
         + ", ".join(f"+{a:.2f} {g:.0f}" for a, g in big[:20])
     )
+    gf = gc_figures(gcs, t0, t1)
+    print(f"load  garbage collections: {json.dumps({k: round(v, 2) for k, v in gf.items()})}")
     ff = frame_figures(res["viewers"], t0, t1)
     print(f"load  telemetry frames: {json.dumps({k: round(v, 2) for k, v in ff.items()})}")
     if res["status_loop"] is not None:
         print(f"/status loop (since start): {json.dumps(res['status_loop'])}")
+    if args.camera and res["status_driver"] is not None:
+        d = {k: res["status_driver"].get(k) for k in ("achieved_rate_hz", "missed_periods", "rtt_ms_p95")}
+        print(f"/status driver (since start): {json.dumps(d)}")
     return 0
 
 

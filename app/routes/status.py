@@ -55,6 +55,7 @@ def loop_of(svc: Service) -> LoopOut | None:
     return LoopOut(period_ms=1e3 * t.period_s, ticks=t.ticks, last_lateness_ms=1e3 * t.last_lateness_s,
                    max_lateness_ms=1e3 * t.max_lateness_s, mean_lateness_ms=1e3 * t.mean_lateness_s,
                    overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority,
+                   service_threads_priority=svc.threads_priority,
                    last_tick_ms_ago=1e3 * age_s if math.isfinite(age_s) else None)
 
 

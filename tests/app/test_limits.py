@@ -209,6 +209,22 @@ def test_heavy_work_runs_in_another_process() -> None:
     assert asyncio.run(pid()) != os.getpid()
 
 
+def test_heavy_work_runs_nicer_than_the_service() -> None:
+    """Issue 10 item 6: the workbench's diagnoses ran at the service's own niceness, competing
+    on equal terms with the web side (whose interpreter lock the control loop waits for)."""
+    from app.work import worker_niceness
+    from app.workers import WORKER_NICE
+
+    async def nice() -> int:
+        pool = WorkPool(workers=1)
+        try:
+            return await pool.run(_principal(1), worker_niceness)
+        finally:
+            pool.close()
+
+    assert asyncio.run(nice()) == min(19, os.nice(0) + WORKER_NICE)
+
+
 def test_heavy_work_knows_the_sites_own_effects() -> None:
     """A worker is a fresh process: the effects setting's plug-ins must be loaded there too."""
     cable = Path(__file__).resolve().parents[2] / "examples" / "effects" / "cable_drag.py"

@@ -148,3 +148,12 @@ def test_the_wheel_carries_every_data_file_of_the_packages() -> None:
             and not p.name.endswith((".nbi", ".nbc"))
         }
         assert data <= listed, f"not in package-data of {package}: {sorted(map(str, data - listed))}"
+
+
+def test_the_unit_allows_the_real_time_priorities_the_example_asks_for() -> None:
+    """control_loop_priority (and service_threads_priority) are refused without RLIMIT_RTPRIO
+    (the service is not root); the unit must allow what the example settings ask for."""
+    limit = int(parse_unit().service["LimitRTPRIO"][0])
+    example = tomllib.loads((ROOT / "deploy" / "console.example.toml").read_text(encoding="utf-8"))
+    assert 0 < example["control_loop_priority"] <= limit
+    assert example.get("service_threads_priority", 0) < example["control_loop_priority"]

@@ -1,13 +1,19 @@
 """The control loop's own clock: ticks on the perf_counter grid, lateness and overruns kept,
 the end of the loop handed back, a refused real-time priority harmless."""
 
+import contextlib
 import math
+import os
+import subprocess
 import sys
+import threading
 import time
+from collections.abc import Callable
 
 import pytest
 
-from tracker.realtime import PacedLoop, sleep_until
+from tracker.errors import ConfigError
+from tracker.realtime import PacedLoop, raise_process_threads, sleep_until
 
 
 def test_sleep_until_returns_at_the_deadline_not_before() -> None:
@@ -103,3 +109,60 @@ def test_tick_gaps_are_counted_in_period_buckets_and_a_stuck_tick_shows_its_age(
     assert t.gap_counts[bucket] >= 1 and t.gap_bounds_s[bucket] >= 0.04
     assert stuck_age and stuck_age[0] >= 0.04
     assert 0.0 <= t.last_tick_age_s < 5.0
+
+
+def _normal_again() -> None:
+    """Every thread of this process back in the normal class (the test moved them)."""
+    for name in os.listdir(f"/proc/{os.getpid()}/task"):
+        with contextlib.suppress(OSError):
+            os.sched_setscheduler(int(name), os.SCHED_OTHER, os.sched_param(0))
+
+
+@pytest.mark.skipif(not hasattr(os, "SCHED_RESET_ON_FORK"), reason="Linux scheduling classes")
+def test_the_process_threads_go_real_time_below_the_loop_and_children_start_normal() -> None:
+    """The service's threads at a low SCHED_FIFO priority: a normal-class thread moves, a thread
+    already real-time (the loop's) keeps its priority, a thread or process started afterwards
+    begins in the normal class (SCHED_RESET_ON_FORK: worker processes never inherit it)."""
+    go, ids = threading.Event(), {}
+
+    def wait(name: str) -> None:
+        ids[name] = threading.get_native_id()
+        go.wait(10.0)
+
+    plain = threading.Thread(target=wait, args=("plain",))
+    plain.start()
+    loop = PacedLoop(0.005, lambda: not go.is_set(), priority=20)
+    loop.start()
+    try:
+        assert poll_until(lambda: "plain" in ids and loop.timing().ticks > 0)
+        if loop.priority != 20:
+            pytest.skip(f"real-time priorities refused here: {loop.priority_error}")
+        moved, refusal = raise_process_threads(5)
+        assert refusal is None and moved >= 2  # at least this thread and `plain`
+        fifo = os.SCHED_FIFO
+        assert os.sched_getscheduler(ids["plain"]) & ~os.SCHED_RESET_ON_FORK == fifo
+        assert os.sched_getparam(ids["plain"]).sched_priority == 5
+        assert os.sched_getparam(0).sched_priority == 5
+        loop_tid = loop._thread.native_id
+        assert loop_tid is not None and os.sched_getparam(loop_tid).sched_priority == 20
+        later = threading.Thread(target=wait, args=("later",))
+        later.start()
+        assert poll_until(lambda: "later" in ids)
+        assert os.sched_getscheduler(ids["later"]) == os.SCHED_OTHER
+        child = subprocess.run([sys.executable, "-c", "import os; print(os.sched_getscheduler(0))"],
+                               capture_output=True, text=True, timeout=60, check=True)
+        assert int(child.stdout) == os.SCHED_OTHER
+        with pytest.raises(ConfigError, match="1..99"):
+            raise_process_threads(0)
+    finally:
+        go.set()
+        _normal_again()
+        plain.join(5.0)
+        loop.join(5.0)
+
+
+def poll_until(fn: Callable[[], bool], deadline_s: float = 5.0) -> bool:
+    end = time.monotonic() + deadline_s
+    while not fn() and time.monotonic() < end:
+        time.sleep(0.005)
+    return fn()

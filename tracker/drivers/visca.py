@@ -17,6 +17,11 @@ speed-table identification): until :meth:`ViscaCamera.hand_back` the supervisor 
 steering and the engine's targets are ignored; at hand-back the targets are forgotten, so the
 camera then goes back to the engine's next target (where it was held before the job).
 
+With ``own_thread=True`` (the service) the supervisor and the link run on an event loop of
+their own in a thread (:class:`tracker.drivers.loop_thread.LoopThread`), so the command cycle
+keeps its period however busy the caller's event loop is (50 WebSocket viewers, a burst of
+requests); the awaitable methods may still be called from the caller's loop.
+
 The one-shot commands (absolute and relative moves, home, presets, zoom, inquiries) are
 awaitable, sent with retransmission, and refuse to move the camera while disabled. Soft
 limits (the engine's, within the camera's own range) clamp every absolute target, and speed
@@ -29,12 +34,13 @@ import asyncio
 import contextlib
 import math
 import time
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Coroutine, Mapping
+from typing import Any, TypeVar
 
 from tracker.drivers import visca_protocol as vp
 from tracker.drivers.camera_profiles import CameraProfile
 from tracker.drivers.camera_servo import STOP, AxisDrive, axis_drive, dead_band_rad
+from tracker.drivers.loop_thread import LoopThread
 from tracker.drivers.motor import AXES
 from tracker.drivers.spec import DriverSpec
 from tracker.drivers.visca_link import ViscaLink, open_link
@@ -44,6 +50,7 @@ BACKOFF_START_S = 0.25
 BACKOFF_MAX_S = 5.0
 STOP_REPEATS = 3
 RATE_WINDOW = 25  # command cycles over which the achieved rate is measured
+T = TypeVar("T")
 
 
 class ViscaCamera:
@@ -61,6 +68,7 @@ class ViscaCamera:
         retries: int = 8,
         link_lost_s: float = 1.0,
         link: ViscaLink | None = None,
+        own_thread: bool = False,
     ) -> None:
         if spec.kind != "visca" or spec.host is None or spec.port is None or spec.transport is None:
             raise ConfigError(f"ViscaCamera needs a visca+udp/visca+tcp driver spec, got {spec.url!r}")
@@ -101,9 +109,12 @@ class ViscaCamera:
         self._stop_repeats = 0
         self._held_by: str | None = None  # a job the camera is lent to (take_over)
         self._task: asyncio.Task[None] | None = None
+        self._own_thread = own_thread
+        self._loop_thread: LoopThread | None = None  # own_thread: the link's loop, once started
         self._inflight: set[asyncio.Task[Any]] = set()
         self._cycle_times: list[float] = []
         self.cycles = 0
+        self.missed_periods = 0  # command periods that passed without a cycle (a late loop)
         self.connects = 0
 
     # -- CameraDriver ---------------------------------------------------------------------------
@@ -212,11 +223,35 @@ class ViscaCamera:
         self.disable()
 
     def start(self) -> None:
+        if not self._own_thread:
+            self._start_here()
+            return
+        if self._loop_thread is None or not self._loop_thread.running:
+            self._loop_thread = LoopThread(f"camera {self.spec.url}")
+        self._loop_thread.call(self._start_here)
+
+    def _start_here(self) -> None:
         if self._task is None or self._task.done():
             self._task = asyncio.get_running_loop().create_task(
                 self._supervise(), name=f"camera {self.spec.url}")
 
+    async def _on_link_loop(self, coro: Coroutine[Any, Any, T]) -> T:
+        """Await ``coro`` where the link lives: the camera's own loop (own_thread) or here."""
+        lt = self._loop_thread
+        return await coro if lt is None else await lt.run(coro)
+
     async def close(self) -> None:
+        lt = self._loop_thread
+        if lt is None:
+            await self._close_here()
+            return
+        try:
+            await lt.run(self._close_here())
+        finally:
+            self._loop_thread = None
+            await asyncio.to_thread(lt.stop)
+
+    async def _close_here(self) -> None:
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -243,6 +278,7 @@ class ViscaCamera:
             "steering": self.steering,
             "command_rate_hz": round(1.0 / self._period, 2),
             "achieved_rate_hz": None if rate is None else round(rate, 2),
+            "missed_periods": self.missed_periods,
             "rtt_ms_median": _round(stats.rtt_percentile_ms(50)),
             "rtt_ms_p95": _round(stats.rtt_percentile_ms(95)),
             "sent": stats.sent,
@@ -257,12 +293,14 @@ class ViscaCamera:
     # -- one-shot commands ----------------------------------------------------------------------
     async def command(self, packet: bytes, *, completion: bool = False, timeout_s: float = 30.0) -> vp.Reply:
         """Send a VISCA command with retransmission (the ACK, or the Completion when asked)."""
-        return await self._link.request(packet, completion=completion, timeout_s=self._timeout,
-                                        retries=self._retries, completion_timeout_s=timeout_s)
+        return await self._on_link_loop(self._link.request(
+            packet, completion=completion, timeout_s=self._timeout, retries=self._retries,
+            completion_timeout_s=timeout_s))
 
     async def inquire(self, packet: bytes) -> bytes:
         """Send a VISCA inquiry with retransmission; the answer's data bytes."""
-        reply = await self._link.request(packet, inquiry=True, timeout_s=self._timeout, retries=self._retries)
+        reply = await self._on_link_loop(
+            self._link.request(packet, inquiry=True, timeout_s=self._timeout, retries=self._retries))
         return reply.data
 
     async def inquire_position(self) -> tuple[float, float]:
@@ -367,11 +405,15 @@ class ViscaCamera:
     async def _cycle_until_lost(self) -> str:
         loop = asyncio.get_running_loop()
         next_t = loop.time()
+        previous: float | None = None  # this connection's previous cycle
         while True:
             now = time.monotonic()
             if now - self._last_answer > self._link_lost_s:
                 return f"no answer for {now - self._last_answer:.1f} s"
             self.cycles += 1
+            if previous is not None:  # whole periods that passed without a cycle
+                self.missed_periods += max(0, int((now - previous) / self._period + 1e-6) - 1)
+            previous = now
             self._cycle_times = [*self._cycle_times[-RATE_WINDOW:], now]
             self._spawn(self._poll_position())
             self._spawn(self._steer())

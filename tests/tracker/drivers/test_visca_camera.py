@@ -280,3 +280,28 @@ def test_emulator_port_is_released_on_close() -> None:
     port = asyncio.run(run())
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", port))
+
+
+@pytest.mark.parametrize("own_thread", [False, True])
+async def test_own_thread_keeps_the_command_cycle_while_the_callers_loop_is_busy(own_thread: bool) -> None:
+    """Issue 10 item 6: the service's event loop, busy with viewers and requests, held up the
+    camera's command cycle; on a loop of its own the cycle keeps its period, and the one-shot
+    commands awaited from the caller's loop still reach the camera."""
+    async with camera(own_thread=own_thread, rate_hz=25.0) as (cam, emu):
+        before, missed = cam.cycles, cam.missed_periods
+        time.sleep(0.4)  # the caller's event loop busy for 10 command periods
+        await asyncio.sleep(0.1)  # a cycle after it (the shared loop's counts the gap)
+        during = cam.cycles - before
+        if own_thread:
+            assert during >= 10
+            assert cam.describe()["missed_periods"] - missed <= 2  # a busy machine may still cost one
+        else:
+            assert during <= 4
+            assert cam.describe()["missed_periods"] - missed >= 8
+        await cam.move_absolute(math.radians(10.0), math.radians(-5.0))
+        pan, tilt = await cam.inquire_position()
+        assert pan == pytest.approx(math.radians(10.0), abs=0.1 * DEG)
+        assert tilt == pytest.approx(math.radians(-5.0), abs=0.1 * DEG)
+        thread = cam._loop_thread
+        assert (thread is not None) == own_thread
+    assert cam._loop_thread is None and (thread is None or not thread.running)  # closed with the camera
