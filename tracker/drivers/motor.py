@@ -11,6 +11,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from tracker.errors import DriverFault
+
 AXES: tuple[str, ...] = ("pan", "tilt")
 
 
@@ -60,6 +62,34 @@ class MotorDriver(Protocol):
     def clear_faults(self) -> None:
         """Clear latched faults (the driver stays disabled until enabled again)."""
         ...
+
+
+class FaultLatch:
+    """The latched faults every driver keeps (the twin, the serial rig, the camera): a fault
+    disables the driver and stays until :meth:`clear_faults`; :meth:`refuse_if_faulted` is the
+    check ``enable`` makes. The driver defines ``disable`` and sets ``self._faults = []``."""
+
+    _faults: list[str]
+
+    def disable(self) -> None:
+        raise NotImplementedError
+
+    def faults(self) -> tuple[str, ...]:
+        return tuple(self._faults)
+
+    def clear_faults(self) -> None:
+        self._faults.clear()
+
+    def latch_fault(self, message: str) -> None:
+        """Latch a fault (once) and disable."""
+        if message not in self._faults:
+            self._faults.append(message)
+        self.disable()
+
+    def refuse_if_faulted(self) -> None:
+        """DriverFault naming the latched faults, if any (before enabling)."""
+        if self._faults:
+            raise DriverFault(f"cannot enable: fault latched ({'; '.join(self._faults)})")
 
 
 @runtime_checkable

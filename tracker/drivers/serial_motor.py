@@ -33,7 +33,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from tracker.drivers import motor_protocol as mp
-from tracker.drivers.motor import AXES
+from tracker.drivers.motor import AXES, FaultLatch
 from tracker.drivers.serial_port import ReplyTimeout, SerialPort
 from tracker.drivers.sim import HARD_STOP_MARGIN_RAD
 from tracker.drivers.spec import DriverSpec
@@ -52,7 +52,7 @@ class _BoardError(Exception):
     pass
 
 
-class SerialMotorDriver:
+class SerialMotorDriver(FaultLatch):
     """The serial motor controller driver (see the module docstring)."""
 
     def __init__(
@@ -141,8 +141,7 @@ class SerialMotorDriver:
         return self._limits[self._check_axis(axis)]
 
     def enable(self) -> None:
-        if self._faults:
-            raise DriverFault(f"cannot enable: fault latched ({'; '.join(self._faults)})")
+        self.refuse_if_faulted()
         if not self.ready:
             raise DriverFault(f"cannot enable: {self.spec.url} is {self._state}, position unknown")
         self._u = {a: 0.0 for a in AXES}
@@ -184,18 +183,6 @@ class SerialMotorDriver:
         with self._lock:
             if self._port is not None and self._state == "connected":
                 self._cycle(idle=False)
-
-    def faults(self) -> tuple[str, ...]:
-        return tuple(self._faults)
-
-    def clear_faults(self) -> None:
-        self._faults.clear()
-
-    def latch_fault(self, message: str) -> None:
-        """Latch a fault and disable (the board is disarmed at the next exchange)."""
-        if message not in self._faults:
-            self._faults.append(message)
-        self.disable()
 
     # -- life cycle ------------------------------------------------------------------------------
     def start(self) -> None:

@@ -23,8 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.control.closed_loop import N_REC, history_length, run_chunk
-from tracker.drivers.motor import AXES
-from tracker.errors import ConfigError, DriverFault
+from tracker.drivers.motor import AXES, FaultLatch
+from tracker.errors import ConfigError
 from tracker.plant.model import AxisModel
 from tracker.plant.params import get_preset
 from tracker.plant.simulate import advance, encoder_rad, initial_state, pack_params
@@ -75,7 +75,7 @@ def load_rig_config(path: str | Path) -> dict[str, AxisModel]:
         raise ConfigError(f"{p}: {exc}") from None
 
 
-class SimDriver:
+class SimDriver(FaultLatch):
     """The simulated pan/tilt rig. ``models`` maps axis → twin (default: the seed presets)."""
 
     def __init__(self, models: Mapping[str, AxisModel] | None = None, dt_s: float = DT_S) -> None:
@@ -122,8 +122,7 @@ class SimDriver:
         return dict(self._models)
 
     def enable(self) -> None:
-        if self._faults:
-            raise DriverFault(f"cannot enable: fault latched ({'; '.join(self._faults)})")
+        self.refuse_if_faulted()
         self._enabled = True
 
     def disable(self) -> None:
@@ -151,19 +150,7 @@ class SimDriver:
             self._check_travel(a)
         self.samples += 1
 
-    def faults(self) -> tuple[str, ...]:
-        return tuple(self._faults)
-
-    def clear_faults(self) -> None:
-        self._faults.clear()
-
     # -- the twin's extras ---------------------------------------------------------------
-    def latch_fault(self, message: str) -> None:
-        """Latch a fault and disable (also used to inject faults in tests)."""
-        if message not in self._faults:
-            self._faults.append(message)
-        self.disable()
-
     def load_angle_rad(self, axis: str) -> float:
         """Where the load (camera) really points: ground truth the encoder may not show."""
         self._check_axis(axis)

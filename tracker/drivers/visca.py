@@ -41,7 +41,7 @@ from tracker.drivers import visca_protocol as vp
 from tracker.drivers.camera_profiles import CameraProfile
 from tracker.drivers.camera_servo import STOP, AxisDrive, axis_drive, dead_band_rad
 from tracker.drivers.loop_thread import LoopThread
-from tracker.drivers.motor import AXES
+from tracker.drivers.motor import AXES, FaultLatch
 from tracker.drivers.spec import DriverSpec
 from tracker.drivers.visca_link import ViscaLink, open_link
 from tracker.errors import ConfigError, DriverFault
@@ -53,7 +53,7 @@ RATE_WINDOW = 25  # command cycles over which the achieved rate is measured
 T = TypeVar("T")
 
 
-class ViscaCamera:
+class ViscaCamera(FaultLatch):
     """The VISCA camera driver (see the module docstring)."""
 
     def __init__(
@@ -148,8 +148,7 @@ class ViscaCamera:
         return self._limits[self._check_axis(axis)]
 
     def enable(self) -> None:
-        if self._faults:
-            raise DriverFault(f"cannot enable: fault latched ({'; '.join(self._faults)})")
+        self.refuse_if_faulted()
         if not self.ready:
             raise DriverFault(f"cannot enable: camera {self.spec.url} is {self._state}, position unknown")
         self._forget_targets()
@@ -209,18 +208,6 @@ class ViscaCamera:
         self._check_axis(axis)
         age = min(time.monotonic() - self._position_t, 2 * self._period) if self._have_position else 0.0
         return self._position[axis] + self._speed[axis] * age
-
-    def faults(self) -> tuple[str, ...]:
-        return tuple(self._faults)
-
-    def clear_faults(self) -> None:
-        self._faults.clear()
-
-    def latch_fault(self, message: str) -> None:
-        """Latch a fault and disable."""
-        if message not in self._faults:
-            self._faults.append(message)
-        self.disable()
 
     def start(self) -> None:
         if not self._own_thread:
