@@ -40,7 +40,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from tracker.audio.filters import gaussian_blur
@@ -473,31 +472,24 @@ class MapTracker:
         return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)
 
 
-@njit(cache=True, error_model="numpy")
 def _shift_rows(rows: FloatArray, cells: FloatArray, circular: bool = False) -> FloatArray:
     """Row ``k`` of ``rows`` (n_rows, n) moved by ``cells[k]`` cells (linear interpolation):
     ``np.interp(arange(n) - cells[k], arange(n), rows[k])`` for every row, with np.interp's
     formula; the edges hold, or the rows wrap round when ``circular``."""
     n_rows, n = rows.shape
-    out = np.empty_like(rows)
-    for k in range(n_rows):
-        row = rows[k]
-        for i in range(n):
-            x = float(i) - cells[k]
-            if circular:
-                x = x % n
-                j = min(int(np.floor(x)), n - 1)
-                left, right = row[j], row[(j + 1) % n]
-                out[k, i] = (right - left) * (x - j) + left
-            elif x <= 0.0:
-                out[k, i] = row[0]
-            elif x >= n - 1:
-                out[k, i] = row[n - 1]
-            else:
-                j = min(max(int(np.floor(x)), 0), n - 2)
-                left, right = row[j], row[j + 1]
-                out[k, i] = (right - left) * (x - j) + left
-    return out
+    x = np.arange(n, dtype=float)[None, :] - np.asarray(cells, dtype=float)[:, None]
+    if circular:
+        x = x % n
+        j = np.minimum(np.floor(x).astype(np.int64), n - 1)
+        left = np.take_along_axis(rows, j, axis=1)
+        right = np.take_along_axis(rows, (j + 1) % n, axis=1)
+        return np.asarray((right - left) * (x - j) + left)
+    j = np.clip(np.floor(x).astype(np.int64), 0, max(0, n - 2))
+    left = np.take_along_axis(rows, j, axis=1)
+    right = np.take_along_axis(rows, np.minimum(j + 1, n - 1), axis=1)
+    out = (right - left) * (x - j) + left
+    out = np.where(x <= 0.0, rows[:, :1], out)
+    return np.asarray(np.where(x >= n - 1, rows[:, n - 1 :], out))
 
 
 def _wrap(angle_rad: float) -> float:

@@ -74,7 +74,7 @@ def _decode(body: bytes, order: str, tag: int, n_channels: int, fs_hz: int, bloc
         raise ValueError(f"{n_channels} channels of {bits} bits in blocks of {block_align} bytes")
     usable = len(body) - len(body) % block_align  # a truncated last frame is dropped
     if tag == _PCM and width in (1, 2, 4):
-        dtype = np.dtype({1: "u1", 2: "i2", 4: "i4"}[width]).newbyteorder(order)
+        dtype = np.dtype(order + {1: "u1", 2: "i2", 4: "i4"}[width])
         data = np.frombuffer(body, dtype=dtype, count=usable // width)
     elif tag == _PCM and width == 3:
         triples = np.frombuffer(body, dtype=np.uint8, count=usable).reshape(-1, 3)
@@ -84,7 +84,7 @@ def _decode(body: bytes, order: str, tag: int, n_channels: int, fs_hz: int, bloc
         words[:, 1:] = triples  # little-endian int32 with the sample in the upper bytes
         data = words.view("<i4").ravel()
     elif tag == _IEEE_FLOAT and width in (4, 8):
-        dtype = np.dtype({4: "f4", 8: "f8"}[width]).newbyteorder(order)
+        dtype = np.dtype(order + {4: "f4", 8: "f8"}[width])
         data = np.frombuffer(body, dtype=dtype, count=usable // width)
     else:
         raise ValueError(f"format tag {tag:#06x} with {bits}-bit samples is not supported")
@@ -124,7 +124,7 @@ def read_wav(path: str | Path) -> tuple[int, FloatArray]:
     if data.dtype == np.uint8:
         audio = (data.astype(float) - 128.0) / 128.0
     elif np.issubdtype(data.dtype, np.integer):
-        audio = data.astype(float) / float(np.iinfo(data.dtype).max)
+        audio = data.astype(float) / float(np.iinfo(data.dtype.name).max)
     else:
         audio = data.astype(float)
     return int(fs_hz), np.ascontiguousarray(audio.T)

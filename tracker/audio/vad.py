@@ -9,10 +9,11 @@ from numpy.typing import NDArray
 
 from tracker.audio.filters import (
     butter_lowpass_sos,
+    filter_history,
     running_mean,
     running_min,
     sosfilt,
-    sosfilt_state,
+    sosfilt_history,
 )
 from tracker.errors import ConfigError
 
@@ -282,7 +283,7 @@ class StreamingSpeechDetector:
 
     def __init__(self, detector: SpeechDetector) -> None:
         self.detector = detector
-        self._state = np.zeros((detector.low_pass_sos.shape[0], 2))
+        self._history = filter_history(detector.low_pass_sos)
         self._mono = np.zeros(0)  # samples of the frame not yet complete
         self._low = np.zeros(0)
         self._next_frame = 0  # index of the next frame to measure
@@ -298,7 +299,7 @@ class StreamingSpeechDetector:
         """Add the next samples of the mono signal, shape (n_samples,)."""
         d = self.detector
         mono = np.asarray(mono, dtype=float)
-        low, self._state = sosfilt_state(d.low_pass_sos, mono, self._state)
+        low, self._history = sosfilt_history(d.low_pass_sos, mono, self._history)
         self._mono = np.concatenate([self._mono, mono])
         self._low = np.concatenate([self._low, low])
         if self._mono.size >= d.frame:
