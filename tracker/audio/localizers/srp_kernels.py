@@ -93,39 +93,40 @@ def _frame_weights(power: FloatArray, rising: FloatArray, floor: FloatArray, ons
 
 def _accumulate(weights: FloatArray, cross_re: FloatArray, cross_im: FloatArray, rows: IntArray
                 ) -> tuple[FloatArray, FloatArray]:
-    """``sum_t weights[k, t, b] * cross[rows[k, t], b, :]`` in time order; each of shape
-    (n_windows, n_band, n_pairs)."""
+    """``sum_t weights[k, t, b] * cross[:, rows[k, t], b]`` in time order; each of shape
+    (n_pairs, n_windows, n_band)."""
     n_windows, n_frames = rows.shape
-    n_band, n_pairs = cross_re.shape[1:]
-    acc_re = np.zeros((n_windows, n_band, n_pairs))
-    acc_im = np.zeros((n_windows, n_band, n_pairs))
+    n_pairs, _, n_band = cross_re.shape
+    acc_re = np.empty((n_pairs, n_windows, n_band))
+    acc_im = np.empty((n_pairs, n_windows, n_band))
     step = max(1, _BATCH_VALUES // (n_frames * n_band * n_pairs))
-    products = np.empty((min(step, n_windows), n_frames, n_band, n_pairs))
+    products = np.empty((n_pairs, min(step, n_windows), n_frames, n_band))
     for lo in range(0, n_windows, step):
-        r, w = rows[lo : lo + step], weights[lo : lo + step, :, :, None]
-        block = products[: r.shape[0]]
-        # Summing axis 1 of a C-ordered (windows, frames, band, pairs) block adds the frames
+        r, w = rows[lo : lo + step], weights[lo : lo + step]
+        block = products[:, : r.shape[0]]
+        if block.shape[1] != products.shape[1]:
+            block = np.empty((n_pairs, r.shape[0], n_frames, n_band))
+        # Summing axis 2 of a C-ordered (pairs, windows, frames, band) block adds the frames
         # in time order (numpy sums an outer axis slice by slice).
-        np.multiply(cross_re[r], w, out=block)
-        acc_re[lo : lo + step] = block.sum(axis=1)
-        np.multiply(cross_im[r], w, out=block)
-        acc_im[lo : lo + step] = block.sum(axis=1)
+        np.multiply(cross_re[:, r], w, out=block)
+        acc_re[:, lo : lo + step] = block.sum(axis=2)
+        np.multiply(cross_im[:, r], w, out=block)
+        acc_im[:, lo : lo + step] = block.sum(axis=2)
     return acc_re, acc_im
 
 
 def _phat(acc_re: FloatArray, acc_im: FloatArray, weights: FloatArray, phat_beta: float
           ) -> ComplexArray:
-    """``C / (|C| + eps) ** beta * weights[b]`` of accumulated cross-spectra (n_windows, n_band,
-    n_pairs), returned as (n_windows, n_pairs, n_band) (dividing a complex number by a real
-    one is dividing its parts)."""
+    """``C / (|C| + eps) ** beta * weights[b]`` of accumulated cross-spectra (n_pairs,
+    n_windows, n_band), returned as (n_windows, n_pairs, n_band) (dividing a complex number
+    by a real one is dividing its parts)."""
     scale = np.hypot(acc_re, acc_im) + _EPS
     if phat_beta != 1.0:
         scale = scale * scale if phat_beta == 2.0 else scale**phat_beta
-    w = weights[:, :, None]
-    out = np.empty(acc_re.shape, dtype=np.complex128)
-    out.real = acc_re / scale * w
-    out.imag = acc_im / scale * w
-    return np.ascontiguousarray(out.transpose(0, 2, 1))
+    out = np.empty((acc_re.shape[1], acc_re.shape[0], acc_re.shape[2]), dtype=np.complex128)
+    out.real = (acc_re / scale * weights).transpose(1, 0, 2)
+    out.imag = (acc_im / scale * weights).transpose(1, 0, 2)
+    return out
 
 
 def weighted_cross_spectra(
@@ -138,7 +139,7 @@ def weighted_cross_spectra(
 
     Parameters
     ----------
-    cross_re, cross_im : ndarray, shape (n_stft, n_band, n_pairs)
+    cross_re, cross_im : ndarray, shape (n_pairs, n_stft, n_band)
         Every STFT frame's pair products ``X_i X_j*`` at the band's bins.
     power : ndarray, shape (n_stft, n_freq)
         Every frame's power averaged over the mics, at all bins.
@@ -172,7 +173,7 @@ def weighted_cross_spectra(
     """
     rows = np.asarray(rows, dtype=np.int64)
     n_windows, n_t = rows.shape
-    n_band, n_pairs = cross_re.shape[1], cross_re.shape[2]
+    n_pairs, _, n_band = cross_re.shape
     bins = np.arange(first_bin, first_bin + n_band)
     use_ratio = snr_exponent >= 0.0
     second = use_ratio and confidence  # the confidence's cross-spectra
@@ -215,18 +216,17 @@ def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, f
 
     ``spectra`` (n_mics, n_new, n_freq) are the new frames; frame ``k``'s products at the bins
     ``first_bin .. first_bin + n_band - 1`` go to row ``rows[k]`` of ``cross_re``/``cross_im``
-    (n_rows, n_band, n_pairs); of ``X / (|X| + 1e-12)`` with ``unit_magnitude``.
+    (n_pairs, n_rows, n_band); of ``X / (|X| + 1e-12)`` with ``unit_magnitude``.
     """
-    n_band = cross_re.shape[1]
-    x = spectra[:, :, first_bin : first_bin + n_band].transpose(1, 2, 0)  # (n_new, n_band, n_mics)
+    n_band = cross_re.shape[2]
+    x = spectra[:, :, first_bin : first_bin + n_band]
     if unit_magnitude:
         x = x / (np.abs(x) + _EPS)
-    re, im = x.real, x.imag
-    a_re, a_im = re[:, :, first], im[:, :, first]
-    b_re, b_im = re[:, :, second], im[:, :, second]
-    # (a + ib)(c - id) written out as numpy's complex product computes it.
-    cross_re[rows] = a_re * b_re + a_im * b_im
-    cross_im[rows] = a_im * b_re - a_re * b_im
+    re, im = np.ascontiguousarray(x.real), np.ascontiguousarray(x.imag)
+    a_re, a_im, b_re, b_im = re[first], im[first], re[second], im[second]
+    # (a + ib)(c - id), its parts written out (numpy's complex product may fuse them).
+    cross_re[:, rows] = a_re * b_re + a_im * b_im
+    cross_im[:, rows] = a_im * b_re - a_re * b_im
 
 
 def gcc_at_lags(cross: ComplexArray, cosines: FloatArray, minus_sines: FloatArray) -> FloatArray:
