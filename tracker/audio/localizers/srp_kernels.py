@@ -91,28 +91,28 @@ def _frame_weights(power: FloatArray, rising: FloatArray, floor: FloatArray, ons
     return np.asarray(np.where(rising == 0.0, 0.0, rise * above))
 
 
-def _accumulate(weights: FloatArray, cross_re: FloatArray, cross_im: FloatArray, rows: IntArray
-                ) -> tuple[FloatArray, FloatArray]:
-    """``sum_t weights[k, t, b] * cross[:, rows[k, t], b]`` in time order; each of shape
-    (n_pairs, n_windows, n_band)."""
+def _accumulate(weights: list[FloatArray], cross_re: FloatArray, cross_im: FloatArray,
+                rows: IntArray) -> list[tuple[FloatArray, FloatArray]]:
+    """``sum_t w[k, t, b] * cross[:, rows[k, t], b]`` in time order for each ``w`` of
+    ``weights`` (n_windows, n_frames, n_band) (the frames gathered once for all of them); each
+    sum's real and imaginary parts of shape (n_pairs, n_windows, n_band)."""
     n_windows, n_frames = rows.shape
     n_pairs, _, n_band = cross_re.shape
-    acc_re = np.empty((n_pairs, n_windows, n_band))
-    acc_im = np.empty((n_pairs, n_windows, n_band))
+    sums = [(np.empty((n_pairs, n_windows, n_band)), np.empty((n_pairs, n_windows, n_band)))
+            for _ in weights]
     step = max(1, _BATCH_VALUES // (n_frames * n_band * n_pairs))
     products = np.empty((n_pairs, min(step, n_windows), n_frames, n_band))
     for lo in range(0, n_windows, step):
-        r, w = rows[lo : lo + step], weights[lo : lo + step]
+        r = rows[lo : lo + step]
         block = products[:, : r.shape[0]]
-        if block.shape[1] != products.shape[1]:
-            block = np.empty((n_pairs, r.shape[0], n_frames, n_band))
-        # Summing axis 2 of a C-ordered (pairs, windows, frames, band) block adds the frames
-        # in time order (numpy sums an outer axis slice by slice).
-        np.multiply(cross_re[:, r], w, out=block)
-        acc_re[:, lo : lo + step] = block.sum(axis=2)
-        np.multiply(cross_im[:, r], w, out=block)
-        acc_im[:, lo : lo + step] = block.sum(axis=2)
-    return acc_re, acc_im
+        for part, source in enumerate((cross_re, cross_im)):
+            gathered = source[:, r]  # (pairs, windows, frames, band)
+            for w, acc in zip(weights, sums, strict=True):
+                # Summing axis 2 of a C-ordered (pairs, windows, frames, band) block adds the
+                # frames in time order (numpy sums an outer axis slice by slice).
+                np.multiply(gathered, w[lo : lo + step], out=block)
+                acc[part][:, lo : lo + step] = block.sum(axis=2)
+    return sums
 
 
 def _phat(acc_re: FloatArray, acc_im: FloatArray, weights: FloatArray, phat_beta: float
@@ -188,8 +188,8 @@ def weighted_cross_spectra(
     share = np.clip(1.0 - low / (mean + _TINY), 0.0, 1.0)
     zeros = np.zeros((n_windows, n_pairs, n_band), dtype=np.complex128)
     if not use_ratio:
-        weights = _frame_weights(p, rise, low, onset, onset_power)
-        acc_re, acc_im = _accumulate(weights, cross_re, cross_im, rows)
+        [(acc_re, acc_im)] = _accumulate([_frame_weights(p, rise, low, onset, onset_power)],
+                                         cross_re, cross_im, rows)
         return _phat(acc_re, acc_im, share, phat_beta), zeros
     noise = _noise_floor(frames_power, edges, interp_index, centres, noise_scale, quantile, bins)
     ratio = np.clip(mean / (noise + _TINY) - 1.0, 0.0, cap)
@@ -199,14 +199,14 @@ def weighted_cross_spectra(
         ratio_weight = ratio * ratio
     else:
         ratio_weight = ratio**snr_exponent
-    acc_re, acc_im = _accumulate(_frame_weights(p, rise, noise, onset, onset_power),
-                                 cross_re, cross_im, rows)
-    direction = _phat(acc_re, acc_im, ratio_weight, phat_beta)
+    weights = [_frame_weights(p, rise, noise, onset, onset_power)]
+    if second:
+        weights.append(_frame_weights(p, rise, low, onset, onset_power))
+    sums = _accumulate(weights, cross_re, cross_im, rows)
+    direction = _phat(*sums[0], ratio_weight, phat_beta)
     if not second:
         return direction, zeros
-    acc_re, acc_im = _accumulate(_frame_weights(p, rise, low, onset, onset_power),
-                                 cross_re, cross_im, rows)
-    return direction, _phat(acc_re, acc_im, share, phat_beta)
+    return direction, _phat(*sums[1], share, phat_beta)
 
 
 def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, first: IntArray,
