@@ -37,10 +37,11 @@ def _low_quantile(values: FloatArray, q: float) -> FloatArray:
     virtual = (n - 1) * q
     below = int(np.floor(virtual))
     gamma = virtual - below
+    # Sorting the few frames of each bin is cheaper than partitioning along a middle axis.
+    ordered = np.sort(values, axis=1)
     if below + 1 >= n:
-        return np.asarray(np.partition(values, below, axis=1)[:, below])
-    part = np.partition(values, (below, below + 1), axis=1)
-    a, b = part[:, below], part[:, below + 1]
+        return np.asarray(ordered[:, below])
+    a, b = ordered[:, below], ordered[:, below + 1]
     diff = b - a
     if gamma >= 0.5:
         return np.asarray(b - diff * (1.0 - gamma))
@@ -223,10 +224,19 @@ def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, f
     if unit_magnitude:
         x = x / (np.abs(x) + _EPS)
     re, im = np.ascontiguousarray(x.real), np.ascontiguousarray(x.imag)
-    a_re, a_im, b_re, b_im = re[first], im[first], re[second], im[second]
-    # (a + ib)(c - id), its parts written out (numpy's complex product may fuse them).
-    cross_re[:, rows] = a_re * b_re + a_im * b_im
-    cross_im[:, rows] = a_im * b_re - a_re * b_im
+    rows = np.asarray(rows, dtype=np.int64)
+    start = int(rows[0]) if rows.size else 0
+    consecutive = bool(np.array_equal(rows, np.arange(start, start + rows.size)))
+    target = slice(start, start + rows.size) if consecutive else rows  # the usual case: a run
+    one, two = np.empty(re.shape[1:]), np.empty(re.shape[1:])
+    for q, (i, j) in enumerate(zip(first.tolist(), second.tolist(), strict=True)):
+        # (a + ib)(c - id), its parts written out (numpy's complex product may fuse them).
+        np.multiply(re[i], re[j], out=one)
+        np.multiply(im[i], im[j], out=two)
+        cross_re[q, target] = np.add(one, two, out=one)
+        np.multiply(im[i], re[j], out=one)
+        np.multiply(re[i], im[j], out=two)
+        cross_im[q, target] = np.subtract(one, two, out=one)
 
 
 def gcc_at_lags(cross: ComplexArray, cosines: FloatArray, minus_sines: FloatArray) -> FloatArray:
