@@ -102,23 +102,19 @@ def _accumulate(weights: list[FloatArray], cross_re: FloatArray, cross_im: Float
     sums = [(np.empty((n_pairs, n_windows, n_band)), np.empty((n_pairs, n_windows, n_band)))
             for _ in weights]
     step = max(1, _BATCH_VALUES // (n_frames * n_band * n_pairs))
-    # Two buffers reused block after block (fresh multi-MB temporaries cost page faults).
-    frames_buffer = np.empty((n_pairs, min(step, n_windows), n_frames, n_band))
-    products_buffer = np.empty_like(frames_buffer)
+    gathered_buffer = np.empty((n_pairs, min(step, n_windows), n_frames, n_band))
     for lo in range(0, n_windows, step):
         r = rows[lo : lo + step]
-        if r.shape[0] == frames_buffer.shape[1]:
-            gathered, block = frames_buffer, products_buffer
-        else:  # the last, shorter block
-            gathered = np.empty((n_pairs, *r.shape, n_band))
-            block = np.empty_like(gathered)
+        # Reused block after block (fresh multi-MB temporaries cost page faults).
+        gathered = (gathered_buffer if r.shape[0] == gathered_buffer.shape[1]
+                    else np.empty((n_pairs, *r.shape, n_band)))
         for part, source in enumerate((cross_re, cross_im)):
             np.take(source, r, axis=1, out=gathered)  # (pairs, windows, frames, band)
             for w, acc in zip(weights, sums, strict=True):
-                # Summing axis 2 of a C-ordered (pairs, windows, frames, band) block adds the
-                # frames in time order (numpy sums an outer axis slice by slice).
-                np.multiply(gathered, w[lo : lo + step], out=block)
-                np.sum(block, axis=2, out=acc[part][:, lo : lo + step])
+                # A sum of products over the frames, in time order (the frames axis is outside
+                # the contiguous band axis; tests pin that a window's sum is its own).
+                acc[part][:, lo : lo + step] = np.einsum("qktb,ktb->qkb", gathered,
+                                                         w[lo : lo + step])
     return sums
 
 
