@@ -11,8 +11,11 @@ for four set-ups: ``locate`` defaults (0.5 s windows every 0.1 s, full circle, t
 tracker on a circular grid), the same with ``--tracker kalman`` (which also localizes the
 1.5 s long windows of speech windows), ``locate --front-only`` and the console's meeting
 settings (0.3 s windows over -90°..90°, the map tracker). The real-time factor is audio seconds over
-CPU seconds. Then the start-up of ``tracker --help`` and of a small command (median wall time
-of several subprocess runs) and the wall time of the whole ``tracker audio locate`` command.
+CPU seconds. Then the start-up of ``tracker --help``, of a small command and of the imports the
+locate chain needs (median wall time of several subprocess runs), and the whole ``tracker audio
+locate`` command from WAV to JSON: median wall time and median CPU time (user + system) of
+``--runs`` runs, each as a real-time factor. The machine is shared: the load average is printed
+beside the figures (a busy machine inflates wall time far more than CPU time).
 
     .venv/bin/python bench/bench_audio_chain.py [--duration 60] [--repeat 3]
 """
@@ -22,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -110,13 +114,26 @@ def stage_seconds(path: Path, pipeline: Pipeline) -> dict[str, float]:
 
 def wall_median(argv: list[str], runs: int) -> float:
     """Median wall time (s) of running ``argv`` in a subprocess."""
-    times = []
+    return command_times(argv, runs)[0]
+
+
+def command_times(argv: list[str], runs: int) -> tuple[float, float]:
+    """Median wall time and median CPU time (user + system, s) of running ``argv``."""
+    walls, cpus = [], []
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     for _ in range(runs):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         subprocess.run(argv, check=True, capture_output=True, env=env)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        walls.append(time.perf_counter() - t0)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+    return statistics.median(walls), statistics.median(cpus)
+
+
+def load() -> str:
+    """The 1, 5 and 15 minute load averages."""
+    return "load average " + ", ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
 def main() -> int:
@@ -126,6 +143,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--mics", type=int, nargs="+", default=sorted(ARRAYS), choices=sorted(ARRAYS))
     parser.add_argument("--chain-only", action="store_true", help="skip the start-up timings")
+    parser.add_argument("--runs", type=int, default=7, help="runs of each whole command")
     parser.add_argument("--wav-dir", type=Path, default=None,
                         help="keep the simulated WAV files here (reused when present)")
     args = parser.parse_args()
@@ -142,7 +160,7 @@ def main() -> int:
                 recording, _ = build_meeting(args.seed, args.duration, MeetingSettings(), array)
                 write_wav(wavs[n_mics], recording.fs_hz, recording.audio)
         print(f"{args.duration:.0f} s meeting, 16 kHz, srp_phat; real-time factor (audio s per "
-              f"CPU s, best of {args.repeat}) per stage; ms of CPU in brackets")
+              f"CPU s, best of {args.repeat}) per stage; ms of CPU in brackets; {load()}")
         print(f"{'mics':>4} {'set-up':22s} " + " ".join(f"{s:>17s}" for s in stages))
         for n_mics, name in arrays.items():
             array = load_array(ROOT / "examples" / "arrays" / f"{name}.json")
@@ -158,19 +176,25 @@ def main() -> int:
         if args.chain_only:
             return 0
         python = sys.executable
-        print("\nstart-up, median wall time of 7 runs:")
+        print(f"\nstart-up, median wall time of 7 runs ({load()}):")
         for argv in (["--help"], ["audio", "locate", "--help"], ["simulate", "--help"]):
             t = wall_median([python, "-m", "tracker", *argv], 7)
             print(f"  tracker {' '.join(argv):24s} {t:6.3f} s")
-        print("whole command, median wall time of 3 runs (start-up, imports, the chain):")
+        chain = ("import tracker.cli.audio, tracker.audio.pipeline, tracker.audio.head, "
+                 "tracker.audio.sources")
+        t = wall_median([python, "-c", chain], 7)
+        print(f"  imports of the locate chain         {t:6.3f} s (python and numpy included)")
+        print(f"whole command, WAV to JSON, median of {args.runs} runs ({load()}):")
         for n_mics, name in arrays.items():
             array_file = str(ROOT / "examples" / "arrays" / f"{name}.json")
             for extra in ([], ["--front-only"]):
                 argv = [python, "-m", "tracker", "audio", "locate", str(wavs[n_mics]),
                         "--array", array_file, "--json", *extra]
-                t = wall_median(argv, 3)
-                print(f"  tracker audio locate ({n_mics} mics{', --front-only' if extra else ''}):"
-                      f" {t:6.2f} s = {args.duration / t:5.1f}x real time")
+                wall, cpu = command_times(argv, args.runs)
+                print(f"  tracker audio locate ({n_mics} mics{', --front-only' if extra else ''}): "
+                      f"wall {wall:5.2f} s = {args.duration / wall:5.1f}x real time, "
+                      f"CPU {cpu:5.2f} s = {args.duration / cpu:5.1f}x")
+        print(f"({load()})")
     return 0
 
 

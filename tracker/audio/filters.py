@@ -1,16 +1,17 @@
-"""Small signal filters without scipy: Butterworth low-pass sections, their filtering, running
-mean and minimum, and a Gaussian blur.
+"""Small signal filters in numpy: Butterworth low-pass sections, their filtering, running mean
+and minimum, and a Gaussian blur.
 
 The speech detector and the map tracker used ``scipy.signal`` and ``scipy.ndimage`` for these
-few lines, and importing those packages took 1-2 s of every ``tracker audio`` command. The
-functions here follow scipy's definitions (same formulas, same operation order where that sets
-the rounding; the tests compare them with scipy to 1e-12).
+few lines, and importing those packages took 1-2 s of every ``tracker audio`` command; numba
+kernels that replaced them cost 0.45 s of numba start-up. The functions here follow scipy's
+definitions (the tests compare them with scipy to 1e-12).
 """
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
@@ -49,29 +50,73 @@ def butter_lowpass_sos(order: int, cutoff_hz: float, fs_hz: float) -> FloatArray
     return sos
 
 
+_TAIL = 1e-22  # impulse-response samples below this share of the peak are dropped
+
+
+@lru_cache(maxsize=16)
+def _impulse_response(sections: tuple[tuple[float, ...], ...]) -> FloatArray:
+    """The impulse response of stable second-order sections, run until what is left of it
+    is below ``_TAIL`` of its peak (the filter then is that FIR filter to rounding)."""
+    sos = np.asarray(sections, dtype=float)
+    radius = max(float(np.max(np.abs(np.roots(s[3:])))) for s in sos)
+    if radius >= 1.0:
+        raise ValueError(f"second-order sections with a pole at radius {radius:.6f} are unstable")
+    # Repeated poles decay as n^k r^n: a margin of sections * 64 samples covers the powers.
+    n = int(np.ceil(np.log(_TAIL) / np.log(max(radius, 1e-3)))) + 64 * sos.shape[0] + 8
+    h = np.zeros(n)
+    h[0] = 1.0
+    for b0, b1, b2, _, a1, a2 in sos:  # direct form I per section on the impulse
+        x, y = h, np.zeros(n)
+        for i in range(n):
+            y[i] = (b0 * x[i] + (b1 * x[i - 1] if i >= 1 else 0.0) + (b2 * x[i - 2] if i >= 2 else 0.0)
+                    - (a1 * y[i - 1] if i >= 1 else 0.0) - (a2 * y[i - 2] if i >= 2 else 0.0))
+        h = y
+    keep = np.flatnonzero(np.abs(h) > _TAIL * np.max(np.abs(h)))
+    return np.asarray(h[: int(keep[-1]) + 1])
+
+
+def _convolve_head(x: FloatArray, h: FloatArray) -> FloatArray:
+    """The first ``x.size`` samples of ``x * h`` by FFT overlap-add; shape of ``x``."""
+    n, m = x.size, h.size
+    nfft = 1 << max(10, int(np.ceil(np.log2(4 * m))))
+    if n + m - 1 <= nfft:  # one block: the smallest transform that holds it
+        nfft = 1 << int(np.ceil(np.log2(max(n + m - 1, 2))))
+    block = nfft - m + 1
+    n_blocks = -(-n // block)
+    padded = np.zeros(n_blocks * block)
+    padded[:n] = x
+    spectra = np.fft.rfft(padded.reshape(n_blocks, block), nfft, axis=-1) * np.fft.rfft(h, nfft)
+    pieces = np.fft.irfft(spectra, nfft, axis=-1)
+    out = pieces[:, :block].copy()
+    out[1:, : m - 1] += pieces[:-1, block : block + m - 1]
+    return np.asarray(out.ravel()[:n])
+
+
+def _sections_key(sos: FloatArray) -> tuple[tuple[float, ...], ...]:
+    return tuple(tuple(float(v) for v in row) for row in np.asarray(sos, dtype=float))
+
+
 def sosfilt(sos: FloatArray, x: FloatArray) -> FloatArray:
-    """Filter ``x`` (n,) through second-order sections from rest (``scipy.signal.sosfilt``:
-    transposed direct form II, the same operations)."""
-    return sosfilt_state(sos, np.asarray(x, dtype=float), np.zeros((sos.shape[0], 2)))[0]
+    """Filter ``x`` (n,) through stable second-order sections from rest (``scipy.signal.sosfilt``
+    to rounding: the sections' impulse response, run until it has decayed below 1e-22 of its
+    peak, applied by FFT convolution)."""
+    return _convolve_head(np.asarray(x, dtype=float), _impulse_response(_sections_key(sos)))
 
 
-@njit(cache=True, error_model="numpy")
-def sosfilt_state(sos: FloatArray, x: FloatArray, state: FloatArray
-                  ) -> tuple[FloatArray, FloatArray]:
-    """:func:`sosfilt` continuing from ``state`` (n_sections, 2); returns the output and the
-    state after the last sample (filtering in pieces gives the whole signal's samples)."""
-    n_sections = sos.shape[0]
-    state = state.copy()
-    y = np.empty_like(x)
-    for n in range(x.size):
-        value = x[n]
-        for s in range(n_sections):
-            out = sos[s, 0] * value + state[s, 0]
-            state[s, 0] = sos[s, 1] * value - sos[s, 4] * out + state[s, 1]
-            state[s, 1] = sos[s, 2] * value - sos[s, 5] * out
-            value = out
-        y[n] = value
-    return y, state
+def filter_history(sos: FloatArray) -> FloatArray:
+    """The input history :func:`sosfilt_history` starts from (rest): zeros, shape (n_taps - 1,)."""
+    return np.zeros(_impulse_response(_sections_key(sos)).size - 1)
+
+
+def sosfilt_history(sos: FloatArray, x: FloatArray, history: FloatArray
+                    ) -> tuple[FloatArray, FloatArray]:
+    """:func:`sosfilt` of the next samples ``x`` of a signal whose earlier input ends with
+    ``history`` (from :func:`filter_history`, then from the previous call); returns the output
+    and the new history (filtering in pieces gives the whole signal's samples)."""
+    h = _impulse_response(_sections_key(sos))
+    joined = np.concatenate([history, np.asarray(x, dtype=float)])
+    y = _convolve_head(joined, h)[history.size :]
+    return np.asarray(y), joined[joined.size - (h.size - 1) :].copy()
 
 
 def _extended(x: FloatArray, size: int, origin: int) -> FloatArray:
@@ -82,27 +127,16 @@ def _extended(x: FloatArray, size: int, origin: int) -> FloatArray:
     return np.concatenate([np.full(before, x[0]), x, np.full(after, x[-1])])
 
 
-@njit(cache=True, error_model="numpy")
-def _running_mean(extended: FloatArray, size: int, n: int) -> FloatArray:
-    out = np.empty(n)
-    total = 0.0
-    for i in range(size):
-        total += extended[i]
-    out[0] = total / size
-    for i in range(1, n):
-        total += extended[i + size - 1] - extended[i - 1]
-        out[i] = total / size
-    return out
-
-
 def running_mean(x: FloatArray, size: int, origin: int = 0) -> FloatArray:
     """``scipy.ndimage.uniform_filter1d(x, size, mode="nearest", origin=origin)``.
 
     Output ``i`` is the mean of ``x[i - size // 2 - origin .. i + (size - 1) // 2 - origin]``
-    (edge values repeated), from a running sum as scipy keeps it; shape of ``x``.
+    (edge values repeated), each window summed on its own (scipy keeps a running sum: the
+    two agree to rounding); shape of ``x``.
     """
     x = np.asarray(x, dtype=float)
-    return np.asarray(_running_mean(_extended(x, size, origin), size, x.size))
+    windows = np.lib.stride_tricks.sliding_window_view(_extended(x, size, origin), size)
+    return np.asarray(windows.sum(axis=-1) / size)
 
 
 def running_min(x: FloatArray, size: int, origin: int = 0) -> FloatArray:

@@ -38,9 +38,9 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from tracker.audio.filters import gaussian_blur
@@ -48,6 +48,8 @@ from tracker.audio.tracking import TrackPoint, WindowVotes, back_and_forth_midpo
 from tracker.errors import ConfigError, DataError
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True, slots=True)
@@ -473,31 +475,40 @@ class MapTracker:
         return TrackPoint(t_s, self._target_rad, self._elevation_rad, "talker", talker)
 
 
-@njit(cache=True, error_model="numpy")
+@lru_cache(maxsize=8)
+def _shift_plan(cells: tuple[float, ...], n: int, circular: bool
+                ) -> tuple[IntArray, IntArray, FloatArray, BoolArray, BoolArray]:
+    """What :func:`_shift_rows` reads for a set of shifts (the same every step of a steady
+    hop): the left and right cells, the fraction between them, and where the edges hold."""
+    x = np.arange(n, dtype=float)[None, :] - np.asarray(cells, dtype=float)[:, None]
+    if circular:
+        x = x % n
+        j = np.minimum(np.floor(x).astype(np.int64), n - 1)
+        right = (j + 1) % n
+        none = np.zeros(x.shape, dtype=bool)
+        plan = (j, right, x - j, none, none)
+    else:
+        j = np.clip(np.floor(x).astype(np.int64), 0, max(0, n - 2))
+        plan = (j, np.minimum(j + 1, n - 1), x - j, x <= 0.0, x >= n - 1)
+    for part in plan:
+        part.flags.writeable = False  # shared by every call with these shifts
+    return plan
+
+
 def _shift_rows(rows: FloatArray, cells: FloatArray, circular: bool = False) -> FloatArray:
     """Row ``k`` of ``rows`` (n_rows, n) moved by ``cells[k]`` cells (linear interpolation):
     ``np.interp(arange(n) - cells[k], arange(n), rows[k])`` for every row, with np.interp's
     formula; the edges hold, or the rows wrap round when ``circular``."""
-    n_rows, n = rows.shape
-    out = np.empty_like(rows)
-    for k in range(n_rows):
-        row = rows[k]
-        for i in range(n):
-            x = float(i) - cells[k]
-            if circular:
-                x = x % n
-                j = min(int(np.floor(x)), n - 1)
-                left, right = row[j], row[(j + 1) % n]
-                out[k, i] = (right - left) * (x - j) + left
-            elif x <= 0.0:
-                out[k, i] = row[0]
-            elif x >= n - 1:
-                out[k, i] = row[n - 1]
-            else:
-                j = min(max(int(np.floor(x)), 0), n - 2)
-                left, right = row[j], row[j + 1]
-                out[k, i] = (right - left) * (x - j) + left
-    return out
+    n = rows.shape[1]
+    j, j_right, fraction, low, high = _shift_plan(tuple(np.asarray(cells, dtype=float).tolist()),
+                                                  n, circular)
+    left = np.take_along_axis(rows, j, axis=1)
+    right = np.take_along_axis(rows, j_right, axis=1)
+    out = (right - left) * fraction + left
+    if circular:
+        return np.asarray(out)
+    out = np.where(low, rows[:, :1], out)
+    return np.asarray(np.where(high, rows[:, n - 1 :], out))
 
 
 def _wrap(angle_rad: float) -> float:

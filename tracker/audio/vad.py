@@ -9,10 +9,11 @@ from numpy.typing import NDArray
 
 from tracker.audio.filters import (
     butter_lowpass_sos,
+    filter_history,
     running_mean,
     running_min,
     sosfilt,
-    sosfilt_state,
+    sosfilt_history,
 )
 from tracker.errors import ConfigError
 
@@ -186,14 +187,17 @@ class SpeechDetector:
         """Per-frame measurements of every whole frame of ``mono`` (n_samples,) and of its
         1 kHz low-pass ``low`` (the same samples filtered from the signal's start)."""
         n_frames = 1 + (mono.size - self.frame) // self.hop
-        index = np.arange(n_frames)[:, None] * self.hop + np.arange(self.frame)[None, :]
-        frames = mono[index] * self._window
+
+        def framed(x: FloatArray) -> FloatArray:  # (n_frames, frame) windowed, no index array
+            view = np.lib.stride_tricks.sliding_window_view(x, self.frame)[:: self.hop][:n_frames]
+            return np.asarray(view * self._window)
+
+        frames = framed(mono)
         spectrum = np.abs(np.fft.rfft(frames, self.nfft, axis=-1)) ** 2
         total = spectrum.sum(axis=-1) + 1e-20
         speech_band = spectrum[:, self._band].sum(axis=-1) / total
         level_db = 10 * np.log10(np.mean(frames**2, axis=-1) + 1e-20)
-        acf = np.fft.irfft(np.abs(np.fft.rfft(low[index] * self._window, self.nfft, axis=-1)) ** 2,
-                           axis=-1)
+        acf = np.fft.irfft(np.abs(np.fft.rfft(framed(low), self.nfft, axis=-1)) ** 2, axis=-1)
         reach = min(self.frame, int(self._lags[-1]) + 2)  # the lags the pitch search reads
         acf = acf[:, :reach] / (acf[:, :1] + 1e-20) / self._window_acf[None, :reach]
         in_range = acf[:, self._lags]
@@ -282,7 +286,7 @@ class StreamingSpeechDetector:
 
     def __init__(self, detector: SpeechDetector) -> None:
         self.detector = detector
-        self._state = np.zeros((detector.low_pass_sos.shape[0], 2))
+        self._history = filter_history(detector.low_pass_sos)
         self._mono = np.zeros(0)  # samples of the frame not yet complete
         self._low = np.zeros(0)
         self._next_frame = 0  # index of the next frame to measure
@@ -298,7 +302,7 @@ class StreamingSpeechDetector:
         """Add the next samples of the mono signal, shape (n_samples,)."""
         d = self.detector
         mono = np.asarray(mono, dtype=float)
-        low, self._state = sosfilt_state(d.low_pass_sos, mono, self._state)
+        low, self._history = sosfilt_history(d.low_pass_sos, mono, self._history)
         self._mono = np.concatenate([self._mono, mono])
         self._low = np.concatenate([self._low, low])
         if self._mono.size >= d.frame:

@@ -307,3 +307,15 @@ def test_pair_cross_spectra_is_the_weighted_sum_of_pair_products(square4):
     np.testing.assert_allclose(pair_cross_spectra(spectra, square4, weights), expected, rtol=1e-12)
     np.testing.assert_allclose(pair_cross_spectra(spectra, square4),
                                (spectra[i] * np.conj(spectra[j])).sum(axis=1), rtol=1e-12)
+
+
+@pytest.mark.parametrize("n_mics", [1, 2, 4, 8, 16, 32])
+def test_gamma_quantile_matches_scipy(n_mics):
+    """The noise floor's Gamma quantile, computed without scipy.special, is scipy's."""
+    from scipy import special
+
+    from tracker.audio.localizers.spectra import gamma_quantile
+
+    for q in (1e-3, 0.01, 0.1, 0.5, 0.9, 0.999):
+        expected = special.gammaincinv(n_mics, q) / n_mics
+        assert gamma_quantile(q, n_mics) == pytest.approx(expected, rel=1e-12)

@@ -147,7 +147,7 @@ def test_bad_settings_are_config_errors():
 @pytest.mark.parametrize("block", [160, 1234, 4000])
 def test_the_streaming_detector_measures_each_frame_once_and_decides_as_the_batch(block):
     """Speed (issue 12): a stream no longer re-measures 3 s of audio at every block; block by
-    block, each frame is measured once (the low-pass state carried over) and the decisions are
+    block, each frame is measured once (the low-pass's input history carried over) and the decisions are
     the whole signal's, also after forgetting frames older than the detector's history."""
     from tracker.audio.vad import StreamingSpeechDetector
 
@@ -167,7 +167,8 @@ def test_the_streaming_detector_measures_each_frame_once_and_decides_as_the_batc
             np.testing.assert_array_equal(recent.voiced[-20:], batch.voiced[k : k + len(recent.voiced)][-20:])
         trimmed.forget_before(n * detector.hop - detector.history_samples)
     whole = everything.features()
-    for name in ("times_s", "level_db", "floor_db", "harmonicity", "speech_band", "modulation_db",
-                 "voiced"):
+    for name in ("times_s", "level_db", "floor_db", "speech_band", "modulation_db", "voiced"):
         np.testing.assert_array_equal(getattr(whole, name), getattr(batch, name), err_msg=name)
+    # The low-pass is an FFT convolution: blocks round differently from the whole signal.
+    np.testing.assert_allclose(whole.harmonicity, batch.harmonicity, rtol=0, atol=1e-12)
     assert batch.voiced.any() and not batch.voiced.all()

@@ -41,7 +41,7 @@ class StftFrames:
     Each frame is stored in a row (rows are reused once a frame is forgotten) as
 
     * ``power[row]``, shape (nfft // 2 + 1,): the power averaged over the mics, every bin;
-    * ``cross_re[row]``, ``cross_im[row]``, shape (n_band, n_pairs): the real and imaginary
+    * ``cross_re[:, row]``, ``cross_im[:, row]``, shape (n_pairs, n_band): the real and imaginary
       parts of the pair products ``X_i X_j*`` at the band's bins (of ``X / |X|`` with
       ``unit_magnitude``: per-frame PHAT);
     * ``rising[row]``, shape (n_band,): how much the power rose since the frame one hop
@@ -74,8 +74,10 @@ class StftFrames:
         n_freq, n_band, n_pairs = self.nfft // 2 + 1, self.band_bins.size, self.first.size
         self.power: FloatArray = np.zeros((0, n_freq))
         self.rising: FloatArray = np.zeros((0, n_band))
-        self.cross_re: FloatArray = np.zeros((0, n_band, n_pairs))
-        self.cross_im: FloatArray = np.zeros((0, n_band, n_pairs))
+        # Pair-major (n_pairs, n_rows, n_band): new frames are written, and windows' frames
+        # gathered, a pair's contiguous band at a time.
+        self.cross_re: FloatArray = np.zeros((n_pairs, 0, n_band))
+        self.cross_im: FloatArray = np.zeros((n_pairs, 0, n_band))
 
     def _allocate(self, capacity: int) -> None:
         """Grow the row arrays to ``capacity`` rows (the new rows are free)."""
@@ -88,7 +90,12 @@ class StftFrames:
 
         self.power = grown(self.power)
         self.rising = grown(self.rising, np.nan)
-        self.cross_re, self.cross_im = grown(self.cross_re), grown(self.cross_im)
+        def grown_pairs(old: FloatArray) -> FloatArray:
+            new = np.zeros((old.shape[0], capacity, old.shape[2]))
+            new[:, :used] = old
+            return new
+
+        self.cross_re, self.cross_im = grown_pairs(self.cross_re), grown_pairs(self.cross_im)
         self._free += list(range(capacity - 1, used - 1, -1))
 
     def __len__(self) -> int:
