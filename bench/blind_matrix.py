@@ -161,6 +161,15 @@ def _candidate(d: dict[str, Any], effect: str) -> dict[str, Any] | None:
     return None
 
 
+def _detectability(csv: Path, truth: dict[str, Any]) -> dict[str, Any]:
+    """Whether the log resolves its hidden effect at all (``bench/detectability.py``)."""
+    from bench.detectability import detectability
+    from tests.truthgen.csvio import read_csv
+
+    t, u, theta = read_csv(csv)
+    return detectability(truth, t, u, theta)
+
+
 def score_one(csv: Path, tracker: str, params: bool = True) -> dict[str, Any]:
     """Score one log: diagnose (two rounds for pairs), then (``params``) fit with the true hidden effects."""
     truth = json.loads(csv.with_suffix(".json").read_text())
@@ -178,6 +187,7 @@ def score_one(csv: Path, tracker: str, params: bool = True) -> dict[str, Any]:
         "controller": truth["controller"],
         "encoder_counts_per_rev": truth["encoder_counts_per_rev"],
     }
+    rec["detectability"] = _detectability(csv, truth)
     d1, t1 = run_cli(tracker, ["model", "diagnose", str(csv), *base])
     v1 = _verdict(d1, missing, "diagnose")
     rec.update(
@@ -282,6 +292,12 @@ def _quantile(xs: list[float], q: float) -> float:
     return s[lo] + (s[hi] - s[lo]) * (pos - lo)
 
 
+def _min_z() -> float:
+    from bench.detectability import MIN_Z
+
+    return MIN_Z
+
+
 def summarize(recs: list[dict[str, Any]]) -> str:
     """The printed summary of a scoring run."""
     out: list[str] = []
@@ -328,6 +344,24 @@ def summarize(recs: list[dict[str, Any]]) -> str:
                 f"  {e:18s} {_pct(sum(x['right_first'] for x in sel), len(sel))}   "
                 f"verdicts {dict(Counter(x['verdict'] for x in sel))}"
             )
+    rated = [x for x in singles if (x.get("detectability") or {}).get("detectable") is not None]
+    if rated:
+        w("")
+        w(
+            "  ... by whether the log resolves the effect (bench/detectability.py: torque signature "
+            f"≥ {_min_z():g} standard errors of the log's own noise; backlash wider than the "
+            "reading's spread)"
+        )
+        for e in EFFECTS:
+            for ok in (True, False):
+                sel = [x for x in rated if x["hidden"] == [e] and x["detectability"]["detectable"] is ok]
+                if sel:
+                    vals = ", ".join(f"{x['detectability']['value']:.2g}" for x in sel)
+                    w(
+                        f"  {e:18s} {'detectable' if ok else 'undetectable':12s} "
+                        f"{_pct(sum(x['right_first'] for x in sel), len(sel))}   "
+                        f"({sel[0]['detectability']['measure']} {vals})"
+                    )
     pairs = [x for x in recs if len(x["hidden"]) == 2]
     if pairs:
         w("")
@@ -402,8 +436,8 @@ def cmd_score(a: argparse.Namespace) -> int:
         print(f"no logs in {folder}", file=sys.stderr)
         return 2
     hidden_of = {p: tuple(json.loads(p.with_suffix(".json").read_text())["hidden"]) for p in csvs}
-    keep = _selected({str(p): h for p, h in hidden_of.items()}, a.only)
-    csvs = [p for p in csvs if str(p) in keep]
+    keep = _selected({p.stem: h for p, h in hidden_of.items()}, a.only)  # by id, label or effect
+    csvs = [p for p in csvs if p.stem in keep]
     if a.limit:
         # keep every case type represented: take round-robin over the labels
         by: dict[str, list[Path]] = defaultdict(list)

@@ -10,8 +10,12 @@ EFFECT = Effect(
         "it engages the load. Splits J into motor and load sides (inertia.motor_fraction)."
     ),
     params=(Param("width", "rad", 0.0, 0.0, 0.5, "whole dead band at the load"),),
-    signature="encoder jumps at velocity reversals while the load lags",
-    look_alikes=("stiction", "compliance"),
+    signature=(
+        "at each reversal of the torque the encoder travels the dead band with the motor's inertia "
+        "alone: a travel wider than the reading's own flicker there (a count either way, or the angle "
+        "noise), which a play of that flicker's size does not explain"
+    ),
+    look_alikes=("stiction", "compliance", "delay"),
     experiment=(
         "slow triangle moves with a load-side sensor (or a camera on a target): lost motion at each reversal"
     ),

@@ -176,6 +176,7 @@ def diagnose(
     reconsider_backlash(rows, screens, ctx)
     rank(rows, judge)
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
+    reconsider_backlash(rows, screens, ctx)  # a belt its refit by simulation rejected
     rank(rows, judge)
 
     significant = [r.effect for r in rows if r.significant]

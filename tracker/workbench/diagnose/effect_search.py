@@ -22,7 +22,7 @@ from tracker.units import AMPLIFIER_LIMIT_V
 from tracker.workbench.diagnose.screening import Screen, Structure, TorqueDesign, screen
 from tracker.workbench.fit import generic
 from tracker.workbench.fit.search import whole_is_enough
-from tracker.workbench.measurements.idim import Regression
+from tracker.workbench.measurements.idim import Regression, Signals
 
 FloatArray = NDArray[np.float64]
 
@@ -41,7 +41,13 @@ SCREENED = (
 )
 MAX_DELAY_S = 0.1
 RIPPLE_MAX_CYCLES = 500
-MIN_BACKLASH_COUNTS = 4
+# A play as narrow as the spread of the reading is what the reading flickering at a reversal (a
+# count either way, or the angle noise) looks like to the dead-band reconstruction: it is the
+# null a real dead band must beat (see :func:`_screen_backlash`). The spread is at least this many
+# counts, and at least this many standard deviations of the reading about the low-passed angle.
+FLICKER_MIN_COUNTS = 2.0
+FLICKER_SIGMAS = 6.0  # ±3σ
+FLICKER_PLAYS = (0.25, 0.5, 0.75, 1.0)  # the null's plays, as fractions of the spread
 
 
 def _best(
@@ -164,13 +170,7 @@ def screen_missing_effects(
                 effect, design, model, base, base_reg, st, 2, {"limit": lim, "above": above}, reg
             )
         elif effect == "backlash":
-            step = max(sig.encoder_step_rad, 1e-5)
-            # Below a few encoder counts a dead band is indistinguishable from quantization.
-            grid = np.geomspace(MIN_BACKLASH_COUNTS * step, 0.1, 12)
-            st, reg, w = _refine_1d(
-                design, lambda v: base.plus("backlash", **{"backlash.width": v}), grid, ne
-            )
-            out[effect] = screen(effect, design, model, base, base_reg, st, 3, {"width": w}, reg)
+            out[effect] = _screen_backlash(design, model, base, base_reg)
         elif effect == "compliance":
             out[effect] = _screen_compliance(design, model, base, base_reg)
     for effect in generic_effects():
@@ -218,6 +218,42 @@ def _screen_ripple(design: TorqueDesign, model: AxisModel, base: Structure, base
         "span_rad": span,
     }
     return screen("ripple", design, model, base, base_reg, st, 3, detail, reg)
+
+
+def _screen_backlash(design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression) -> Screen:
+    """Backlash: the dead band's width by the regression with the load reconstructed behind it.
+
+    A play as wide as the reading's flicker explains much of the residual torque of any log (the
+    count, or the angle noise, flickers at reversals and the load "coasts" through the flicker,
+    which smooths the acceleration's staircase), with no dead band at all. So the widths are
+    searched from the flicker's spread (:func:`reading_spread_rad`) up, and
+    ``detail["beyond_flicker"]`` is the share of the residual torque the best width explains
+    beyond the best play within that spread: a real dead band's motor travels its whole width at
+    every reversal, which a flicker does not.
+    """
+    sig = design.sig
+    ne = base_reg.n_eff
+    spread = reading_spread_rad(sig)
+
+    def make(v: float) -> Structure:
+        return base.plus("backlash", **{"backlash.width": v})
+
+    flicker = min(design.fit(make(f * spread), ne, cv=False).sse for f in FLICKER_PLAYS)
+    grid = np.geomspace(spread, max(0.1, 4.0 * spread), 12)
+    st, reg, w = _refine_1d(design, make, grid, ne)
+    beyond = 1.0 - reg.sse / flicker if flicker > 0 else 0.0
+    detail = {"width": w, "beyond_flicker": beyond, "flicker_rad": spread}
+    return screen("backlash", design, model, base, base_reg, st, 3, detail, reg)
+
+
+def reading_spread_rad(sig: Signals) -> float:
+    """How far the encoder's reading spreads about the true angle (rad): the larger of
+    :data:`FLICKER_MIN_COUNTS` counts and :data:`FLICKER_SIGMAS` robust standard deviations of
+    the reading about the low-passed angle (quantization and angle noise together)."""
+    step = max(sig.encoder_step_rad, 1e-5)
+    r = sig.theta_raw_rad - sig.theta_rad
+    sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    return max(FLICKER_MIN_COUNTS * step, FLICKER_SIGMAS * sigma)
 
 
 def _screen_compliance(

@@ -207,7 +207,8 @@ def describe(
         return (
             f"the encoder moves through a dead band of {p['backlash.width']:.3g} rad when the torque "
             f"reverses, with reduced inertia ({100 * e:.0f} % of the residual torque in {100 * tfrac:.0f} % "
-            "of the time, near acceleration reversals)" + tail
+            "of the time, near acceleration reversals); beyond a count's flicker at reversals it explains "
+            f"{100 * d.get('beyond_flicker', 0.0):.0f} % of the residual torque" + tail
         )
     if effect == "compliance":
         f, ratio = _resonance(ctx)

@@ -38,8 +38,7 @@ MIN_KSTEP_ROBUST = 0.025
 # Stiction is judged on its break-away excess when the moving data cannot see it.
 MIN_BREAKAWAY_T = 4.0
 REFINE_TOP = 2
-MIN_BACKLASH_GAIN = 0.15
-MIN_BACKLASH_SIGNIFICANT_COUNTS = 8
+MIN_BACKLASH_GAIN = 0.15  # share of the residual torque beyond a count's flicker at reversals
 MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but not explode
 MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no delay at all)
 # Below: one controller tick of computational latency, seen anywhere up to one more sample late
@@ -236,7 +235,7 @@ def judge_candidate(
         screen_ok = (screen_ok and _physical(effect, cand, ctx)) or min(search.gains) >= MIN_HELD_OUT_GAIN
     significant = screen_ok and _kstep_ok(effect, cmp, scr.p_value)
     if effect == "backlash":
-        significant = _backlash_significant(scr, screens, cmp, ctx.sig.encoder_step_rad)
+        significant = _backlash_significant(scr, screens, cmp)
     elif not screen_ok and two_mass and effect in TORQUE_EFFECTS and cmp.improvement > 0:
         # With a belt or dead band in the model the torque regression is swamped by the rough
         # load reconstruction: refit the effect with the friction by simulation and judge it
@@ -294,7 +293,7 @@ def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: 
     if bl is None or bl.significant or belt is None or belt.significant:
         return
     others = {k: v for k, v in screens.items() if k != "compliance"}
-    bl.significant = _backlash_significant(bl.screen, others, bl.cmp, ctx.sig.encoder_step_rad) and _physical(
+    bl.significant = _backlash_significant(bl.screen, others, bl.cmp) and _physical(
         "backlash", bl.model, ctx
     )
 
@@ -306,8 +305,20 @@ def rank(rows: list[Judged], judge: KStepJudge) -> None:
     over a small range imitates a bias torque) leads only if it explains significantly more of
     the torque (F-test on the effective sample size) and also predicts better by simulation;
     otherwise the simpler story leads.
+
+    Backlash is judged by the screening alone (the k-step prediction cannot see where the load
+    sits in the dead band), so among the significant it is placed by the screening too: ahead of
+    every significant candidate whose torque regression explains less of the held-out torque (a
+    delay or a belt imitates the late load at reversals, but explains less of it).
     """
     rows.sort(key=Judged.rank_key)
+    bl = next((i for i, r in enumerate(rows) if r.effect == "backlash" and r.significant), None)
+    if bl is not None:
+        ahead = next(
+            (i for i in range(bl) if rows[i].screen.gain_cv < rows[bl].screen.gain_cv), None
+        )
+        if ahead is not None:
+            rows.insert(ahead, rows.pop(bl))
     for j in range(1, len(rows)):
         top, other = rows[0], rows[j]
         if not other.significant:
@@ -443,25 +454,24 @@ def _kstep_ok(effect: str, cmp: Comparison, screen_p: float = 1.0) -> bool:
     return cmp.improvement >= MIN_KSTEP_GAIN and cmp.robust_improvement >= MIN_KSTEP_ROBUST
 
 
-def _backlash_significant(
-    scr: Screen, screens: Mapping[str, Screen], cmp: Comparison, step_rad: float
-) -> bool:
+def _backlash_significant(scr: Screen, screens: Mapping[str, Screen], cmp: Comparison) -> bool:
     """Backlash by screening alone, with a stricter bar.
 
     Where the load sits in the dead band is not observable over a short prediction window (a
     load without friction coasts in the gap), so the k-step judgement cannot confirm backlash
     even for the true model. The screening reconstructs the load through the whole run instead;
-    it must explain a large share of the held-out torque, and more than a belt would; its width
-    must exceed a few encoder counts (below that it is quantization at reversals), and the
-    simulation must not be made much worse by it.
+    it must explain a large share of the torque beyond what a play of a count or two explains
+    (the encoder's flicker at reversals: see ``effect_search._screen_backlash``), more of the
+    held-out torque than a belt would, and the simulation must not be made much worse by it.
     """
     other = screens.get("compliance")
     # Only a belt with a resonance competes (an overdamped one is the extra state fitting noise).
     resonant = other is not None and other.params.get("compliance.damping", 0.0) < MAX_RESONANT_DAMPING
     beats_belt = not resonant or other is None or scr.gain_cv > other.gain_cv
-    wide = scr.params.get("backlash.width", 0.0) >= MIN_BACKLASH_SIGNIFICANT_COUNTS * max(step_rad, 1e-12)
+    beyond_flicker = scr.detail.get("beyond_flicker", 0.0) >= MIN_BACKLASH_GAIN
     sane = cmp.improvement > MIN_BACKLASH_KSTEP
-    return scr.gain_cv >= MIN_BACKLASH_GAIN and scr.p_value <= MAX_SCREEN_P and beats_belt and wide and sane
+    explains = scr.gain_cv >= MIN_BACKLASH_GAIN and scr.p_value <= MAX_SCREEN_P
+    return explains and beats_belt and beyond_flicker and sane
 
 
 __all__ = [

@@ -1,0 +1,58 @@
+"""The bench's detectability of a hidden effect (bench/detectability.py) on the generator's logs."""
+
+from __future__ import annotations
+
+import copy
+import subprocess
+import sys
+from pathlib import Path
+
+from bench.detectability import MIN_Z, detectability
+from tests.truthgen.matrix import generate_case
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _rate(case_id: str, scale: float = 1.0) -> dict[str, object]:
+    log, truth = generate_case(case_id)
+    truth = copy.deepcopy(truth)
+    if scale != 1.0 and "viscous_asymmetry.negative" in truth["params"]:
+        p = truth["params"]
+        excess = p["viscous_asymmetry.negative"] - p["viscous.b"]
+        p["viscous_asymmetry.negative"] = p["viscous.b"] + scale * excess
+    return detectability(truth, log.t, log.u, log.theta)
+
+
+def test_a_viscous_asymmetry_under_the_logs_disturbance_is_undetectable() -> None:
+    """The case of the last session's analysis: 5e-4 N·m at 1 rad/s under a 1.6 mN·m disturbance
+    low-passed at 0.8 Hz. "No verdict" is the right answer there."""
+    r = _rate("viscous_asymmetry-001")
+    assert r["measure"] == "z" and r["detectable"] is False
+    assert isinstance(r["value"], float) and r["value"] < MIN_Z
+
+
+def test_the_same_asymmetry_twenty_times_larger_would_be_resolved() -> None:
+    """The measure scales with the signature against the same noise (the log is unchanged)."""
+    small, large = _rate("viscous_asymmetry-001"), _rate("viscous_asymmetry-001", 20.0)
+    assert isinstance(small["value"], float) and isinstance(large["value"], float)
+    assert large["value"] > 10.0 * small["value"]
+    assert large["detectable"] is True
+
+
+def test_gravity_that_the_diagnosis_finds_is_detectable_and_clean_logs_are_not_rated() -> None:
+    r = _rate("gravity-000")
+    assert r["detectable"] is True and isinstance(r["value"], float) and r["value"] >= MIN_Z
+    assert _rate("clean-000")["detectable"] is None
+
+
+def test_a_dead_band_narrower_than_the_readings_spread_is_undetectable() -> None:
+    """dev backlash-004: 2.1 counts at 250 Hz; backlash-000: 4.2 counts, resolved."""
+    narrow, wide = _rate("backlash-004"), _rate("backlash-000")
+    assert narrow["measure"] == "width/spread" and narrow["detectable"] is False
+    assert wide["detectable"] is True
+
+
+def test_detectability_imports_nothing_from_tracker() -> None:
+    code = "import sys, bench.detectability; print(any(m.split('.')[0] == 'tracker' for m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.strip() == "False"
