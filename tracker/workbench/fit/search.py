@@ -51,18 +51,31 @@ BACKLASH_GRID_COUNTS = tuple(float(x) for x in np.geomspace(1.0, 300.0, 26))
 COMPLIANCE_GRID_HZ = tuple(float(x) for x in np.geomspace(0.5, 300.0, 68))
 FINE_GRID = tuple(float(x) for x in np.linspace(0.88, 1.12, 13))
 COMPLIANCE_DAMPING_GRID = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8)
+# Dampings tried at every coarse frequency (a lightly damped basin is deep only near its ζ).
+COARSE_DAMPING_GRID = (0.05, 0.15, 0.4)
+# Basins of the coarse frequency profile refined (the true one need not be the lowest there).
+RESONANCE_BASINS = 3
+# After the damping is set: frequency steps of 2 % (the basin is ±ζ wide, ζ down to ~0.04).
+RESONANCE_FINE_GRID = tuple(float(x) for x in np.linspace(0.94, 1.06, 7))
 # Low-pass of the rigid-body inverse dynamics for two-mass models (Hz).
 TWO_MASS_ID_CUTOFF_HZ = 2.0
+# Parameters of effects that act through a hidden state (searched by prediction only).
+HIDDEN_STATE_PARAMS = ("backlash.width", "compliance.frequency", "compliance.damping")
 # Grids on the prediction error use every GRID_WINDOW_STRIDE-th window (4× cheaper).
 GRID_WINDOW_STRIDE = 4
 
 
 @dataclass(frozen=True, slots=True)
 class StartValues:
-    """The fitter's starting model and the inverse-dynamics relative error (%) behind it."""
+    """The fitter's starting model and the inverse-dynamics relative error (%) behind it.
+
+    ``alternatives``: other starts in other basins of a multimodal parameter (a belt resonance),
+    best first; the fitter runs a short fit from each and goes on from the best.
+    """
 
     model: AxisModel
     id_error_percent: float
+    alternatives: tuple[AxisModel, ...] = ()
 
 
 def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int, stride: int = 1) -> float:
@@ -266,13 +279,42 @@ def search_start(
     hybrid = replace_params(
         own, {n: v for n, v in m_id.params.items() if n.split(".")[0] not in BASE_EFFECTS}
     )
-    m_id = min((m_id, own, hybrid), key=lambda cand: window_cost(meas, est, cand, k))
-    # Hidden-state effects are searched by prediction on the chosen start: inverse dynamics has no
-    # hidden state, and through a wide dead band it returns nonsense (J ten times too small), on
-    # which no width predicts better than none.
-    return StartValues(
-        _search_hidden_state(meas, est, m_id, free, k), idf.relative_error_percent if idf else math.nan
+    id_error = idf.relative_error_percent if idf else math.nan
+    starts: list[AxisModel] = []
+    for cand in (m_id, own, hybrid):
+        if all(cand.params != c.params for c in starts):
+            starts.append(cand)
+    if not any(n in free for n in HIDDEN_STATE_PARAMS):
+        return StartValues(min(starts, key=lambda cand: window_cost(meas, est, cand, k)), id_error)
+    # Hidden-state effects are searched by prediction: inverse dynamics has no hidden state, and
+    # through a wide dead band it returns nonsense (J ten times too small), on which no width
+    # predicts better than none; through a belt it can misjudge J by half, on which a stiff belt
+    # predicts better than the true resonance. Judged at the catalogue's default width or
+    # frequency, the starts cannot be ranked either: search on each start, keep the best.
+    per_start = [_search_hidden_state(meas, est, cand, free, k) for cand in starts]
+    ranked = sorted(
+        (m for found in per_start for m in found), key=lambda cand: window_cost(meas, est, cand, k)
     )
+    # Other basins worth a fit of their own: each start's best two (its base values decide which
+    # resonance predicts best before they are refitted), in other basins than the best start.
+    others: list[AxisModel] = []
+    for found in per_start:
+        for m in found[:2]:
+            if m is not ranked[0] and all(_other_basin(m, o) for o in (ranked[0], *others)):
+                others.append(m)
+    return StartValues(ranked[0], id_error, tuple(others))
+
+
+def _other_basin(a: AxisModel, b: AxisModel) -> bool:
+    """Whether two starts lie in different basins of the belt frequency (more than 15 % apart,
+    or the same frequency from base values more than 15 % apart)."""
+    fa, fb = a.params.get("compliance.frequency"), b.params.get("compliance.frequency")
+    if fa is None or fb is None:
+        return False
+    if abs(math.log(fa / fb)) > math.log(1.15):
+        return True
+    ja, jb = a.params["inertia.J"], b.params["inertia.J"]
+    return abs(math.log(ja / jb)) > math.log(1.15)
 
 
 def _generic_grids(model: AxisModel, free: Sequence[str]) -> list[tuple[str, list[float]]]:
@@ -289,8 +331,9 @@ def _generic_grids(model: AxisModel, free: Sequence[str]) -> list[tuple[str, lis
 
 def _search_hidden_state(
     meas: Measurement, est: StateEstimate, m_id: AxisModel, free: Sequence[str], k: int
-) -> AxisModel:
-    """Grid searches by k-step prediction for backlash width and belt frequency/damping."""
+) -> list[AxisModel]:
+    """Grid searches by k-step prediction for backlash width and belt frequency/damping: the
+    searched model, with the belt's other basins after it (see :func:`search_resonance`)."""
     unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
     if "backlash.width" in free:
         # From one count up to a tenth of the travel: counts alone (or the noise level, on a log
@@ -304,15 +347,58 @@ def _search_hidden_state(
         w0 = m_id.params["backlash.width"]
         m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [w0 * f for f in FINE_GRID], k)
     if "compliance.frequency" in free:
-        nyq = 0.5 / meas.dt_s
-        m_id = grid_on_prediction(
-            meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k
-        )
-        f0 = m_id.params["compliance.frequency"]
-        m_id = grid_on_prediction(meas, est, m_id, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
-        if "compliance.damping" in free:
-            m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
-    return m_id
+        return search_resonance(meas, est, m_id, "compliance.damping" in free, k)
+    return [m_id]
+
+
+def _local_minima(costs: Sequence[float], n: int) -> list[int]:
+    """Indices of the ``n`` lowest local minima of a cost profile (ends count), lowest first."""
+    c = list(costs)
+    idx = [i for i in range(len(c)) if (i == 0 or c[i] <= c[i - 1]) and (i == len(c) - 1 or c[i] <= c[i + 1])]
+    return sorted(idx, key=lambda i: c[i])[:n]
+
+
+def search_resonance(
+    meas: Measurement, est: StateEstimate, model: AxisModel, fit_damping: bool, k: int
+) -> list[AxisModel]:
+    """Belt frequency (and damping) by k-step prediction: a joint coarse search, then the best
+    few basins refined.
+
+    A lightly damped resonance's cost basin is only about ±ζ wide in frequency, and deep only
+    near the right damping: at a ratio-1.1 grid with the damping held at one value the true
+    basin (ζ = 0.04–0.2) is often stepped over, and a stiff belt far above the loop's bandwidth
+    (which predicts like a rigid axis) wins. So the coarse grid takes, at every frequency, the
+    best of a few dampings; then each of the :data:`RESONANCE_BASINS` lowest local minima is
+    refined (fine frequency grid, damping grid, fine frequency again). Returns the refined
+    basins, best first: with base parameters still off (inverse dynamics can misjudge J by half
+    through a belt) a stiff belt can predict better than the true resonance until J, b, Fc are
+    refitted with it, so the fitter tries each (:class:`StartValues`.alternatives).
+    """
+    nyq = 0.5 / meas.dt_s
+    freqs = [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq]
+    if not freqs:
+        return [model]
+    z0 = model.params["compliance.damping"]
+    zetas = COARSE_DAMPING_GRID if fit_damping else (z0,)
+    profile: list[tuple[float, AxisModel]] = []
+    for f in freqs:
+        cands = [replace_params(model, {"compliance.frequency": f, "compliance.damping": z}) for z in zetas]
+        costs = [window_cost(meas, est, c, k, GRID_WINDOW_STRIDE) for c in cands]
+        j = int(np.argmin(costs))
+        profile.append((costs[j], cands[j]))
+    found: list[tuple[float, AxisModel]] = []
+    for i in _local_minima([c for c, _ in profile], RESONANCE_BASINS):
+        m = profile[i][1]
+        f0 = m.params["compliance.frequency"]
+        m = grid_on_prediction(meas, est, m, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
+        if fit_damping:
+            m = grid_on_prediction(meas, est, m, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
+            f0 = m.params["compliance.frequency"]
+            m = grid_on_prediction(
+                meas, est, m, "compliance.frequency", [f0 * f for f in RESONANCE_FINE_GRID], k
+            )
+        found.append((window_cost(meas, est, m, k, GRID_WINDOW_STRIDE), m))
+    return [m for _, m in sorted(found, key=lambda cm: cm[0])]
 
 
 __all__ = [
