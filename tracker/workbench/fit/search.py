@@ -230,12 +230,16 @@ def search_start(
     linear_free = [
         n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
     ]
-    linear_free = [n for n in linear_free if n not in ("stiction.velocity", "gravity.phase", "ripple.phase")]
+    linear_free = [
+        n
+        for n in linear_free
+        if n not in ("stiction.velocity", "gravity.phase", "ripple.phase", "ripple.cycles_per_rev")
+    ]
     # Generic effects: only the parameters their torque is linear in (the rest: searched, below).
     linear_free = [
         n for n in linear_free if not is_generic(n.split(".")[0]) or n in linear_generic_params(m, free)
     ]
-    if m.has("ripple") and "ripple.amplitude" in free:
+    if m.has("ripple") and ("ripple.amplitude" in free or "ripple.cycles_per_rev" in free):
         m = replace_params(m, {"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
     w95 = float(np.percentile(np.abs(est.omega_rad_s), 95)) or 1.0
     umax = float(np.max(np.abs(meas.u_v)))
@@ -285,7 +289,11 @@ def search_start(
         if all(cand.params != c.params for c in starts):
             starts.append(cand)
     if not any(n in free for n in HIDDEN_STATE_PARAMS):
-        return StartValues(min(starts, key=lambda cand: window_cost(meas, est, cand, k)), id_error)
+        best = min(starts, key=lambda cand: window_cost(meas, est, cand, k))
+        others: tuple[AxisModel, ...] = ()
+        if "ripple.cycles_per_rev" in free and best.has("ripple"):
+            others = ripple_alternatives(meas, est, best, linear_free)
+        return StartValues(best, id_error, others)
     # Hidden-state effects are searched by prediction: inverse dynamics has no hidden state, and
     # through a wide dead band it returns nonsense (J ten times too small), on which no width
     # predicts better than none; through a belt it can misjudge J by half, on which a stiff belt
@@ -303,6 +311,39 @@ def search_start(
             if m is not ranked[0] and all(_other_basin(m, o) for o in (ranked[0], *others)):
                 others.append(m)
     return StartValues(ranked[0], id_error, tuple(others))
+
+
+def ripple_alternatives(
+    meas: Measurement, est: StateEstimate, model: AxisModel, linear_free: Sequence[str]
+) -> tuple[AxisModel, ...]:
+    """Starts at other cycle counts for the fitter to try: n ± π/span and n ± 2π/span.
+
+    Over a span of θ a line of sin(nθ) is 2π/span wide in n (3.8 cycles per revolution over
+    1.65 rad), and the residual torque the spectrum is taken from carries the smoother's lag and
+    the other effects' misfit, so its peak can sit a line width off (37 for 39). The k-step
+    prediction has a basin about π/span wide around the true n: starts spaced by that much
+    cover the line, each with the amplitude and phase inverse dynamics finds at its n.
+    """
+    mov = moving_mask(est.omega_rad_s)
+    span = float(np.ptp(est.theta_rad[mov])) if np.any(mov) else 0.0
+    if span <= 0.0:
+        return ()
+    n0 = model.params["ripple.cycles_per_rev"]
+    step = math.pi / span
+    prm = get_param("ripple.cycles_per_rev")
+    keep = [*linear_free, "ripple.phase"]
+    out = []
+    for j in (-2, -1, 1, 2):
+        n = n0 + j * step
+        if not prm.lower <= n <= prm.upper:
+            continue
+        cand = replace_params(model, {"ripple.cycles_per_rev": n})
+        try:
+            idf = fit_inverse_dynamics(meas, est, cand, linear_free, cutoff_hz=_cutoff_hz(cand))
+        except ConfigError:
+            continue
+        out.append(replace_params(cand, {n_: v for n_, v in idf.params.items() if n_ in keep}))
+    return tuple(out)
 
 
 def _other_basin(a: AxisModel, b: AxisModel) -> bool:

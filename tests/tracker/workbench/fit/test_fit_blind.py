@@ -51,3 +51,15 @@ def test_belt_resonance_is_found_where_inverse_dynamics_misjudges_j() -> None:
     flags = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated)}
     assert not flags["compliance.frequency"].poorly_determined
     assert math.isfinite(res.stderr["compliance.frequency"])
+
+
+@pytest.mark.slow
+def test_ripple_cycles_found_a_spectral_line_width_from_the_spectrum_peak() -> None:
+    """delay+ripple-000: 39 cycles per revolution over a 1.65 rad span (a line 3.8 cycles wide);
+    the residual torque's spectrum peaks at 37. Starts a basin apart and a fit of the cycles as
+    a real number land on 39, and the phase with it."""
+    _, true, res = _fit("delay+ripple-000")
+    assert abs(res.params["ripple.cycles_per_rev"] - true["ripple.cycles_per_rev"]) < 0.2
+    assert abs(math.remainder(res.params["ripple.phase"] - true["ripple.phase"], 2 * math.pi)) < 0.1
+    assert _rel(res.params["ripple.amplitude"], true["ripple.amplitude"]) < 0.10
+    assert abs(res.params["delay.seconds"] - true["delay.seconds"]) < 1e-3
