@@ -290,10 +290,10 @@ def search_start(
             starts.append(cand)
     if not any(n in free for n in HIDDEN_STATE_PARAMS):
         best = min(starts, key=lambda cand: window_cost(meas, est, cand, k))
-        others: tuple[AxisModel, ...] = ()
+        cycles: tuple[AxisModel, ...] = ()
         if "ripple.cycles_per_rev" in free and best.has("ripple"):
-            others = ripple_alternatives(meas, est, best, linear_free)
-        return StartValues(best, id_error, others)
+            cycles = ripple_alternatives(meas, est, best, linear_free)
+        return StartValues(best, id_error, cycles)
     # Hidden-state effects are searched by prediction: inverse dynamics has no hidden state, and
     # through a wide dead band it returns nonsense (J ten times too small), on which no width
     # predicts better than none; through a belt it can misjudge J by half, on which a stiff belt
