@@ -53,6 +53,10 @@ MAX_EVALUATIONS = 400
 # Short fits from the other basins of a multimodal start: evaluations, and windows kept (1 in n).
 PROBE_EVALUATIONS = 25
 PROBE_STRIDE = 4
+# Short fits from rival minima (a checked delay), and the z a rival's excess cost must reach
+# to be rejected (two-sided 95 %).
+RIVAL_EVALUATIONS = 8
+RIVAL_Z = 1.96
 POINTS_PER_WINDOW = 10
 STDERR_STEP = 1e-2
 DIFF_STEP = 1e-2
@@ -380,6 +384,47 @@ def parameter_covariance(
     return out
 
 
+def _widened_for_rivals(
+    coords: _Coords,
+    probe: Callable[[FloatArray], FloatArray],
+    x_best: FloatArray,
+    rivals: Sequence[FloatArray],
+    stderr: Mapping[str, float],
+    per_window: int,
+    window_s: float,
+) -> dict[str, float]:
+    """Standard errors at least half the distance to a rival minimum the data cannot reject.
+
+    The local standard errors describe one basin. When another (a delay of 0.5 ms against 6 ms
+    with stiction, a second belt resonance) fits the same windows about as well, the data do
+    not decide between them, and ±0.3 ms around 6 ms would be a confident wrong answer. The
+    comparison is Vuong's test of non-nested models on the windows' sums of squares: the
+    rival's excess D = Σ_w (S_rival,w − S_best,w) against its spread over clusters of windows
+    longer than the residuals' correlation time; |z| < 1.96 is a rival the data cannot reject.
+    """
+    f_best = probe(x_best).reshape(-1, per_window)
+    s_best = np.sum(f_best * f_best, axis=1)
+    clusters = _cluster_ids(f_best, window_s)
+    best_vals, _ = coords.values(x_best)
+    out = dict(stderr)
+    for x in rivals:
+        f = probe(x).reshape(-1, per_window)
+        d = np.bincount(clusters, weights=np.sum(f * f, axis=1) - s_best)
+        c = d.size
+        spread = math.sqrt(c * float(np.var(d)) * c / max(c - 1, 1)) if c > 1 else 0.0
+        if not float(d.sum()) < RIVAL_Z * spread:
+            continue
+        vals, _ = coords.values(x)
+        for name, v in vals.items():
+            if name not in out:
+                continue
+            delta = v - best_vals[name]
+            if name.endswith(".phase"):
+                delta = math.remainder(delta, 2.0 * math.pi)
+            out[name] = max(out[name], 0.5 * abs(delta))
+    return out
+
+
 def _diff_step(name: str) -> float:
     """Relative finite-difference step of a coordinate."""
     if name == "backlash.width":
@@ -511,11 +556,12 @@ def fit_model(
             max_nfev=MAX_EVALUATIONS,
         )
 
+    probe = windowed(PROBE_STRIDE)
+    tried: list[FloatArray] = []
     if start.alternatives:
         # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
         # base parameters not yet refitted. A short fit from each on a quarter of the windows,
         # then the full fit from the best.
-        probe = windowed(PROBE_STRIDE)
         trials = []
         for cand in (model0, *start.alternatives):
             trial = least_squares(
@@ -546,6 +592,34 @@ def fit_model(
     clusters = _cluster_ids(resid.reshape(-1, cols.size), k * dt)
     cov = parameter_covariance(jac, resid, clusters, cols.size)
     stderr = coords.stderr(sol.x, cov)
+    if start.rivals and "delay.seconds" in coords.names:
+        # The rival delays are hypotheses (none, one sample, another minimum of the search's
+        # profile): hold the delay there and refit the rest briefly. The belt's and the ripple's
+        # other basins are starts, not hypotheses: their short fits choose where to begin.
+        i_d = coords.names.index("delay.seconds")
+        keep = np.arange(coords.names.__len__()) != i_d
+        for cand in start.rivals:
+            x_r = coords.encode(cand)
+
+            def held(x_free: FloatArray, x_r: FloatArray = x_r) -> FloatArray:
+                x_full = x_r.copy()
+                x_full[keep] = x_free
+                return probe(x_full)
+
+            got = least_squares(
+                held,
+                x_r[keep],
+                bounds=(coords.lower[keep], coords.upper[keep]),
+                method="trf",
+                x_scale=1.0,
+                diff_step=steps[keep],
+                max_nfev=RIVAL_EVALUATIONS,
+            ).x
+            x_full = x_r.copy()
+            x_full[keep] = got
+            tried.append(x_full)
+    if tried:
+        stderr = _widened_for_rivals(coords, probe, sol.x, tried, stderr, cols.size, PROBE_STRIDE * k * dt)
     return _finish(
         meas,
         fitted,

@@ -70,12 +70,15 @@ class StartValues:
     """The fitter's starting model and the inverse-dynamics relative error (%) behind it.
 
     ``alternatives``: other starts in other basins of a multimodal parameter (a belt resonance),
-    best first; the fitter runs a short fit from each and goes on from the best.
+    best first; the fitter runs a short fit from each and goes on from the best. ``rivals``:
+    the start at other local minima of a searched profile (delay); the fitter checks after the
+    fit whether one of them fits as well, and widens the standard errors if so.
     """
 
     model: AxisModel
     id_error_percent: float
     alternatives: tuple[AxisModel, ...] = ()
+    rivals: tuple[AxisModel, ...] = ()
 
 
 def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int, stride: int = 1) -> float:
@@ -197,6 +200,32 @@ def _grid_on_id(
     return best
 
 
+def _delay_rivals(
+    meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str]
+) -> list[float]:
+    """Delays at the other local minima of the inverse-dynamics error over the delay grid.
+
+    Stiction and a delay both act at reversals, J and a delay both shape the answer to a step:
+    on a short or coarse log two delays far apart can explain it about equally well. Returns
+    the grid values at local minima other than the best (at most two), best first."""
+    prm = get_param("delay.seconds")
+    errs = []
+    for v in DELAY_GRID_S:
+        cand = replace_params(model, {"delay.seconds": min(max(v, prm.lower), prm.upper)})
+        try:
+            errs.append(_id_error(meas, est, cand, free))
+        except ConfigError:
+            errs.append(math.inf)
+    idx = _local_minima(errs, 3)
+    chosen = model.params["delay.seconds"]
+    # Always also "no transport delay": none, or one sample (a computational latency, the
+    # README's logging convention); the fit then asks whether the data reject them.
+    conventions = [0.0, meas.dt_s]
+    return [
+        v for v in [*(DELAY_GRID_S[i] for i in idx[1:]), *conventions] if abs(v - chosen) > 0.5 * meas.dt_s
+    ]
+
+
 def grid_on_prediction(
     meas: Measurement,
     est: StateEstimate,
@@ -243,9 +272,11 @@ def search_start(
         m = replace_params(m, {"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
     w95 = float(np.percentile(np.abs(est.omega_rad_s), 95)) or 1.0
     umax = float(np.max(np.abs(meas.u_v)))
+    rival_delays: list[float] = []
     try:
         if "delay.seconds" in free:
             m = _grid_on_id(meas, est, m, "delay.seconds", DELAY_GRID_S, linear_free)
+            rival_delays = _delay_rivals(meas, est, m, linear_free)
         if "saturation.limit" in free and umax > 0:
             m = _grid_on_id(
                 meas, est, m, "saturation.limit", [f * umax for f in SATURATION_GRID], linear_free
@@ -293,7 +324,8 @@ def search_start(
         cycles: tuple[AxisModel, ...] = ()
         if "ripple.cycles_per_rev" in free and best.has("ripple"):
             cycles = ripple_alternatives(meas, est, best, linear_free)
-        return StartValues(best, id_error, cycles)
+        rivals = tuple(replace_params(best, {"delay.seconds": v}) for v in rival_delays)
+        return StartValues(best, id_error, cycles, rivals)
     # Hidden-state effects are searched by prediction: inverse dynamics has no hidden state, and
     # through a wide dead band it returns nonsense (J ten times too small), on which no width
     # predicts better than none; through a belt it can misjudge J by half, on which a stiff belt
@@ -310,7 +342,8 @@ def search_start(
         for m in found[:2]:
             if m is not ranked[0] and all(_other_basin(m, o) for o in (ranked[0], *others)):
                 others.append(m)
-    return StartValues(ranked[0], id_error, tuple(others))
+    rivals = tuple(replace_params(ranked[0], {"delay.seconds": v}) for v in rival_delays)
+    return StartValues(ranked[0], id_error, tuple(others), rivals)
 
 
 def ripple_alternatives(

@@ -63,3 +63,27 @@ def test_ripple_cycles_found_a_spectral_line_width_from_the_spectrum_peak() -> N
     assert abs(math.remainder(res.params["ripple.phase"] - true["ripple.phase"], 2 * math.pi)) < 0.1
     assert _rel(res.params["ripple.amplitude"], true["ripple.amplitude"]) < 0.10
     assert abs(res.params["delay.seconds"] - true["delay.seconds"]) < 1e-3
+
+
+@pytest.mark.slow
+def test_a_delay_the_data_cannot_tell_from_none_is_flagged() -> None:
+    """stiction-009 (2 kHz, a one-sample latency, stiction): the fit's best lag is ~6 ms, but
+    with the lag held at zero the rest refits about as well (Vuong's test on the windows cannot
+    reject it). A ±0.3 ms error bar around 6 ms was a confident wrong answer; the error must
+    now reach the rival, so the lag is flagged poorly determined."""
+    _, true, res = _fit("stiction-009")
+    got, want = res.params["delay.seconds"], true["delay.seconds"]
+    flags = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated)}
+    assert abs(got - want) < 1e-3 or flags["delay.seconds"].poorly_determined
+    assert abs(got - want) < 3.0 * res.stderr["delay.seconds"]
+
+
+@pytest.mark.slow
+def test_a_clear_delay_keeps_its_tight_error() -> None:
+    """delay-001: a 14.7 ms drive delay under a PID at 1 kHz; no rival (none, one sample) fits
+    as well, so the error stays well under a millisecond and the value within one."""
+    _, true, res = _fit("delay-001")
+    assert abs(res.params["delay.seconds"] - true["delay.seconds"]) < 1e-3
+    assert res.stderr["delay.seconds"] < 5e-4
+    flags = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated)}
+    assert not flags["delay.seconds"].poorly_determined
