@@ -302,6 +302,7 @@ def _score_fit(
     rec["fit_effects"] = fitted_effects
     rec["fitted"] = f.get("params")
     rec["fitted_stderr"] = f.get("stderr")
+    rec["fitted_correlated"] = f.get("correlated")
     fp = f.get("params")
     if not isinstance(fp, dict):
         missing.append("fit: params")

@@ -46,7 +46,7 @@ class ParameterCertainty:
         }
 
 
-# A value within this fraction of its range's width from a bound is "at" the bound.
+# A value within this fraction of a bound's size from it is "at" the bound.
 AT_BOUND_FRACTION = 1e-3
 
 
@@ -55,21 +55,21 @@ def _at_bound(name: str, value: float) -> str | None:
 
     The standard error there is one-sided and means nothing: a belt frequency pinned at its
     lowest value with a tight error is the fit leaving the model's range, not a measurement.
+    "On" means within 0.1 % of the bound's own size (bounds span decades: 1e-5 to 100 rad/s).
     A bound of zero (no viscous friction, no backlash) is a physical value and is left to the
-    relative error, which is infinite there anyway.
+    relative error, which is infinite there anyway; a phase wraps and has no bound.
     """
+    if name.endswith(".phase"):
+        return None
     try:
         prm = get_param(name)
     except ConfigError:
         return None
-    width = prm.upper - prm.lower
-    if not math.isfinite(value) or not math.isfinite(width) or width <= 0:
+    if not math.isfinite(value):
         return None
-    tol = AT_BOUND_FRACTION * width if width < 1e3 else 0.0
-    if prm.lower != 0.0 and abs(value - prm.lower) <= max(tol, 1e-3 * abs(prm.lower)):
-        return f"lower bound {prm.lower:g} {prm.unit}"
-    if abs(prm.upper - value) <= max(tol, 1e-3 * abs(prm.upper)):
-        return f"upper bound {prm.upper:g} {prm.unit}"
+    for which, bound in (("lower", prm.lower), ("upper", prm.upper)):
+        if bound != 0.0 and math.isfinite(bound) and abs(value - bound) <= AT_BOUND_FRACTION * abs(bound):
+            return f"{which} bound {bound:g} {prm.unit}"
     return None
 
 
