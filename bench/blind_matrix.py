@@ -2,14 +2,16 @@
 
     .venv/bin/python bench/blind_matrix.py generate --out DIR [--jobs 1] [--only clean,gravity]
     .venv/bin/python bench/blind_matrix.py score --data DIR --split dev [--limit N] [--jobs 2]
-                                               [--only clean,gravity] [--report FILE]
+                                               [--only clean,gravity] [--report FILE] [--params-only]
 
 The truth generator is ``tests/truthgen`` (imports nothing from ``tracker``). Scoring runs the
 project's command line as an outside user would (the user knows the axis and the gain only):
 ``tracker model diagnose FILE --axis A --gain K --json``; for pairs a second round as a user
 makes it: ``fit --effects <first verdict>``, then ``diagnose`` of that fitted model (``--set``);
-and ``tracker model fit FILE --axis A --gain K --effects <true hidden> --json`` for the
-parameters. The heldout split is for the final evaluation only.
+and ``tracker model fit FILE --axis A --gain K --effects <true hidden> --json --no-keep`` for the
+parameters (plus ``delay`` on a log with a computational latency: :func:`fit_effects`),
+compared with the truth as the log sees it (:func:`seen_by_log`) and split by the fit's own
+"poorly determined" flag. The heldout split is for the final evaluation only.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ EFFECTS = (
 # A verdict of one of these stands for the other (both are a constant torque bias per direction).
 EQUIVALENT = {"offset": "coulomb_asymmetry", "coulomb_asymmetry": "offset"}
 PHASES = ("gravity.phase", "ripple.phase")
+BASE_PARAMS = ("inertia.J", "viscous.b", "coulomb.torque")
 DEFAULT_TRACKER = ROOT / ".venv" / "bin" / "tracker"
 
 
@@ -143,6 +146,56 @@ def _match(verdict: str, effect: str) -> bool:
     return verdict == effect or EQUIVALENT.get(effect) == verdict
 
 
+def seen_by_log(truth: dict[str, Any]) -> dict[str, float]:
+    """The true parameters as a fit of the log itself must see them (the log's conventions).
+
+    The truth generator records the physical values; two of them are measured on the log in a
+    convention that differs, and comparing like with like needs them translated (README,
+    "Logging convention"; tests/truthgen/README.md):
+
+    * ``delay.seconds``: the logged ``u`` at row i is applied from t_i + latency_samples·T + delay
+      (``latency_samples`` = 1 is the controller's one-sample computational latency, which the
+      workbench reports as part of the lag). The lag a fit of the log can find is the sum; a log
+      with a latency and no hidden delay has a lag of one sample (see :func:`fit_effects`).
+    * ``gravity.phase``, ``ripple.phase``: a truncating encoder reports floor(θ/q)·q, on average
+      θ − q/2, so every angle of the log is shifted by −q/2 and a torque sin(nθ + φ) reads as
+      sin(nθ_log + φ + n·q/2) in the log's angles (the encoder's zero is a convention, n·q/2 is
+      up to 0.25 rad for ripple at 40 cycles on a 500-count encoder). A rounding encoder is
+      centred.
+
+    Every other parameter is compared as recorded.
+    """
+    p = {k: float(v) for k, v in truth["params"].items()}
+    latency_s = int(truth.get("latency_samples", 0)) / float(truth["sample_rate_hz"])
+    if "delay.seconds" in p or latency_s > 0:
+        p["delay.seconds"] = p.get("delay.seconds", 0.0) + latency_s
+    if truth.get("encoder_mode") == "truncate":
+        half = 0.5 * p.get("quantization.step", 0.0)
+        if "gravity.phase" in p:
+            p["gravity.phase"] += half
+        if "ripple.phase" in p:
+            p["ripple.phase"] += p["ripple.cycles_per_rev"] * half
+    for k in PHASES:
+        if k in p:
+            p[k] = (p[k] + math.pi) % (2.0 * math.pi) - math.pi
+    return p
+
+
+def fit_effects(truth: dict[str, Any]) -> list[str]:
+    """The effects the parameter fit is given: the hidden ones, plus ``delay`` on a log with a
+    computational latency (its true structure has a lag of latency_samples·T, which the README
+    tells users to add as ``delay.seconds``; fitting J, b, Fc without it misspecifies the model
+    and is not what "fit with the true structure" means)."""
+    hidden = list(truth["hidden"])
+    if int(truth.get("latency_samples", 0)) > 0 and "delay" not in hidden:
+        hidden.append("delay")
+    return hidden
+
+
+#: The score's name of delay.seconds fitted on a log whose only lag is the computational latency.
+LATENCY_KEY = "latency as delay.seconds"
+
+
 def _param_error(name: str, fitted: float, true: float) -> dict[str, float]:
     if name in PHASES:
         e = (fitted - true + math.pi) % (2.0 * math.pi) - math.pi
@@ -170,8 +223,9 @@ def _detectability(csv: Path, truth: dict[str, Any]) -> dict[str, Any]:
     return detectability(truth, t, u, theta)
 
 
-def score_one(csv: Path, tracker: str, params: bool = True) -> dict[str, Any]:
-    """Score one log: diagnose (two rounds for pairs), then (``params``) fit with the true hidden effects."""
+def score_one(csv: Path, tracker: str, params_only: bool = False, params: bool = True) -> dict[str, Any]:
+    """Score one log: diagnose (two rounds for pairs), then fit with the true hidden effects
+    (``params_only``: the fit alone; ``params`` False: the diagnosis alone)."""
     truth = json.loads(csv.with_suffix(".json").read_text())
     hidden: list[str] = truth["hidden"]
     base = ["--axis", truth["axis"], "--gain", repr(truth["gain_nm_per_v"])]
@@ -188,6 +242,18 @@ def score_one(csv: Path, tracker: str, params: bool = True) -> dict[str, Any]:
         "encoder_counts_per_rev": truth["encoder_counts_per_rev"],
     }
     rec["detectability"] = _detectability(csv, truth)
+    if not params_only:
+        _score_diagnosis(csv, tracker, truth, base, rec, missing)
+    if params:
+        _score_fit(csv, tracker, truth, base, rec, missing)
+    rec["missing_keys"] = missing
+    return rec
+
+
+def _score_diagnosis(
+    csv: Path, tracker: str, truth: dict[str, Any], base: list[str], rec: dict[str, Any], missing: list[str]
+) -> None:
+    hidden: list[str] = truth["hidden"]
     d1, t1 = run_cli(tracker, ["model", "diagnose", str(csv), *base])
     v1 = _verdict(d1, missing, "diagnose")
     rec.update(
@@ -228,40 +294,54 @@ def score_one(csv: Path, tracker: str, params: bool = True) -> dict[str, Any]:
         rec["pair_found"] = len(set(found)) == 2 or (
             set(hidden) == {"offset", "coulomb_asymmetry"} and v1 != v2 and {v1, v2} <= set(hidden)
         )
-    if not params:
-        rec["missing_keys"] = missing
-        return rec
-    # parameters
-    if hidden:
-        f, tf = run_cli(tracker, ["model", "fit", str(csv), *base, "--effects", ",".join(hidden)])
-    else:
-        f, tf = run_cli(tracker, ["model", "fit", str(csv), *base])
+
+
+def _score_fit(
+    csv: Path, tracker: str, truth: dict[str, Any], base: list[str], rec: dict[str, Any], missing: list[str]
+) -> None:
+    """Fit with the true hidden effects (nothing kept) and compare with :func:`seen_by_log`."""
+    hidden: list[str] = truth["hidden"]
+    fitted_effects = fit_effects(truth)
+    effects = ["--effects", ",".join(fitted_effects)] if fitted_effects else []
+    f, tf = run_cli(tracker, ["model", "fit", str(csv), *base, *effects, "--no-keep"])
     rec["fit_s"] = tf
     if "error" in f:
         rec["fit_error"] = f["error"]
-    else:
-        rec["fit_percent"] = f.get("fit_percent")
-        fp = f.get("params")
-        if not isinstance(fp, dict):
-            missing.append("fit: params")
-            fp = {}
-        errs: dict[str, dict[str, float]] = {}
-        names = [k for k in truth["params"] if k.split(".")[0] in hidden] + [
-            "inertia.J",
-            "viscous.b",
-            "coulomb.torque",
-        ]
-        for k in names:
-            if k not in fp:
-                missing.append(f"fit: params[{k}]")
-                continue
-            try:
-                errs[k] = _param_error(k, float(fp[k]), float(truth["params"][k]))
-            except (TypeError, ValueError):
-                missing.append(f"fit: params[{k}] not a number")
-        rec["param_errors"] = errs
-    rec["missing_keys"] = missing
-    return rec
+        return
+    rec["fit_percent"] = f.get("fit_percent")
+    rec["fit_elapsed_s"] = f.get("elapsed_s")
+    rec["fit_effects"] = fitted_effects
+    rec["fitted"] = f.get("params")
+    rec["fitted_stderr"] = f.get("stderr")
+    rec["fitted_correlated"] = f.get("correlated")
+    fp = f.get("params")
+    if not isinstance(fp, dict):
+        missing.append("fit: params")
+        fp = {}
+    flags = {
+        c.get("name"): bool(c.get("poorly_determined"))
+        for c in f.get("certainty") or []
+        if isinstance(c, dict)
+    }
+    true = seen_by_log(truth)
+    errs: dict[str, dict[str, float]] = {}
+    names = [k for k in truth["params"] if k.split(".")[0] in hidden] + list(BASE_PARAMS)
+    if "delay" in fitted_effects and "delay" not in hidden:
+        names.append("delay.seconds")
+    for k in names:
+        if k not in fp:
+            missing.append(f"fit: params[{k}]")
+            continue
+        key = LATENCY_KEY if k == "delay.seconds" and "delay" not in hidden else k
+        try:
+            errs[key] = _param_error(k, float(fp[k]), true[k])
+        except (TypeError, ValueError):
+            missing.append(f"fit: params[{k}] not a number")
+            continue
+        # the fit's own verdict on this parameter (phases: their amplitude's flag)
+        flag_key = {"gravity.phase": "gravity.torque", "ripple.phase": "ripple.amplitude"}.get(k, k)
+        errs[key]["flagged"] = float(flags.get(k, False) or flags.get(flag_key, False))
+    rec["param_errors"] = errs
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -299,7 +379,14 @@ def _min_z() -> float:
 
 
 def summarize(recs: list[dict[str, Any]]) -> str:
-    """The printed summary of a scoring run."""
+    """The printed summary of a scoring run (parameters only when no log was diagnosed)."""
+    if not any("verdict" in x for x in recs):
+        return summarize_params(recs)
+    return summarize_diagnosis(recs) + "\n" + summarize_params(recs)
+
+
+def summarize_diagnosis(recs: list[dict[str, Any]]) -> str:
+    """Confusion matrix, false alarms, right first verdicts and pairs."""
     out: list[str] = []
     w = out.append
     rows = ["clean", *EFFECTS]
@@ -372,11 +459,22 @@ def summarize(recs: list[dict[str, Any]]) -> str:
             sel = [x for x in pairs if x["label"] == lab]
             vs = ", ".join(f"{x['verdict']}→{x.get('verdict2')}" for x in sel)
             w(f"  {lab:30s} {sum(x['pair_found'] for x in sel)}/{len(sel)}   {vs}")
+    return "\n".join(out)
+
+
+def summarize_params(recs: list[dict[str, Any]]) -> str:
+    """Parameter errors (all, and split by the fit's own 'poorly determined' flag), timings."""
+    out: list[str] = []
+    w = out.append
+    clean = [x for x in recs if not x["hidden"]]
     w("")
     w("Parameter errors, fit with the true hidden effects (relative %; phases rad; delay ms)")
+    w("  true values as the log sees them (bench/blind_matrix.py seen_by_log: delay includes the")
+    w("  latency samples, phases in a truncating encoder's angles); 'determined': not flagged")
+    w("  poorly determined by the fit's own uncertainty, ok/n; 'flagged': m, of which ok")
     w(
         f"  {'parameter':30s} {'n':>3s} {'median':>8s} {'p90':>8s} {'share ok':>9s}"
-        "  ok = within 10 % / 0.1 rad / 1 ms"
+        f" {'determined':>11s} {'flagged':>9s}  ok = within 10 % / 0.1 rad / 1 ms"
     )
     by: dict[str, list[dict[str, float]]] = defaultdict(list)
     by_base: dict[str, list[dict[str, float]]] = defaultdict(list)
@@ -392,20 +490,34 @@ def summarize(recs: list[dict[str, Any]]) -> str:
             es = table[k]
             unit = "abs_rad" if "abs_rad" in es[0] else "abs_ms" if "abs_ms" in es[0] else "abs_pct"
             vals = [e[unit] for e in es]
+            det = [e for e in es if not e.get("flagged")]
+            flg = [e for e in es if e.get("flagged")]
             w(
                 f"  {k:30s} {len(es):3d} {_quantile(vals, 0.5):8.3g} {_quantile(vals, 0.9):8.3g} "
                 f"{100 * sum(e['ok'] for e in es) / len(es):8.0f} %"
+                f" {int(sum(e['ok'] for e in det)):5d}/{len(det):<5d}"
+                f" {len(flg):3d} ({int(sum(e['ok'] for e in flg))} ok)"
             )
         if title == "hidden":
             w("  -- base parameters (J, b, Fc) of every log:")
-    dts = [x["diagnose_s"] for x in recs]
+    n_all = sum(len(x.get("param_errors") or {}) for x in recs)
+    det_all = [e for x in recs for e in (x.get("param_errors") or {}).values() if not e.get("flagged")]
+    w(
+        f"  all parameters: {sum(e['ok'] for x in recs for e in (x.get('param_errors') or {}).values()):.0f}"
+        f"/{n_all} ok; determined by the log {sum(e['ok'] for e in det_all):.0f}/{len(det_all)} ok; "
+        f"flagged as undetermined {n_all - len(det_all)}"
+    )
+    dts = [x["diagnose_s"] for x in recs if "diagnose_s" in x]
     d2s = [x["diagnose2_s"] for x in recs if "diagnose2_s" in x]
     fts = [x["fit_s"] for x in recs if "fit_s" in x]
+    fes = [float(x["fit_elapsed_s"]) for x in recs if x.get("fit_elapsed_s") is not None]
     w("")
     w(
         f"Timing (wall clock per call): diagnose median {_quantile(dts, 0.5):.1f} s, "
         f"max {max(dts, default=float('nan')):.1f} s; second round median {_quantile(d2s, 0.5):.1f} s; "
-        f"fit median {_quantile(fts, 0.5):.1f} s, max {max(fts, default=float('nan')):.1f} s"
+        f"fit median {_quantile(fts, 0.5):.1f} s, max {max(fts, default=float('nan')):.1f} s "
+        f"(the fit itself, without the CLI's start-up: median {_quantile(fes, 0.5):.2f} s, "
+        f"max {max(fes, default=float('nan')):.2f} s)"
     )
     errs = [x for x in recs if "diagnose_error" in x or "fit_error" in x]
     if errs:
@@ -415,7 +527,7 @@ def summarize(recs: list[dict[str, Any]]) -> str:
     miss = Counter(m for x in recs for m in x["missing_keys"])
     if miss:
         w(f"Missing keys in the CLI's JSON: {dict(miss)}")
-    fa = [x for x in clean if x["false_alarm"]]
+    fa = [x for x in clean if x.get("false_alarm")]
     if fa:
         w("")
         w("Clean logs with a verdict (what the workbench said):")
@@ -453,12 +565,14 @@ def cmd_score(a: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     recs: list[dict[str, Any]] = []
     with ThreadPoolExecutor(a.jobs) as ex:
-        for r in ex.map(lambda p: score_one(p, a.tracker, not a.no_params), csvs):
+        for r in ex.map(lambda p: score_one(p, a.tracker, a.params_only, not a.no_params), csvs):
             recs.append(r)
             extra = f" then {r.get('verdict2')}" if "verdict2" in r else ""
+            bad = [k for k, e in (r.get("param_errors") or {}).items() if not e["ok"]]
             print(
-                f"  {r['id']:32s} → {r['verdict']}{extra}  "
-                f"({r['diagnose_s']:.1f} s, fit {r.get('fit_s', float('nan')):.1f} s)",
+                f"  {r['id']:32s} → {r.get('verdict', '-')}{extra}  "
+                f"({r.get('diagnose_s', 0.0):.1f} s, fit {r.get('fit_s', float('nan')):.1f} s)"
+                + (f"  off: {', '.join(bad)}" if bad else ""),
                 flush=True,
             )
     wall = time.perf_counter() - t0
@@ -489,6 +603,9 @@ def main() -> int:
         "--only", default="", help="labels (clean, gravity, gravity+delay) or effects, comma-separated"
     )
     s.add_argument("--report", default="")
+    s.add_argument(
+        "--params-only", action="store_true", help="only the fit with the true effects (no diagnosis)"
+    )
     s.add_argument("--no-params", action="store_true", help="diagnosis only: no fit with the true effects")
     s.add_argument("--tracker", default=os.environ.get("TRACKER_CLI", str(DEFAULT_TRACKER)))
     a = ap.parse_args()

@@ -41,7 +41,7 @@ from tracker.plant.effects import get_param
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.compare.compare import horizon_samples, score_model
-from tracker.workbench.fit.search import FINE_GRID, grid_on_prediction, search_start
+from tracker.workbench.fit.search import FINE_GRID, HIDDEN_STATE_PARAMS, grid_on_prediction, search_start
 from tracker.workbench.fit.torques import replace_params
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.states import StateEstimate, estimate_states, with_load_observer
@@ -50,10 +50,18 @@ FloatArray = NDArray[np.float64]
 FitMethod = Literal["k_step", "inverse_dynamics"]
 
 MAX_EVALUATIONS = 400
+# Short fits from the other basins of a multimodal start: evaluations, and windows kept (1 in n).
+PROBE_EVALUATIONS = 25
+PROBE_STRIDE = 4
+# Short fits from rival minima (a checked delay), and the z a rival's excess cost must reach
+# to be rejected (two-sided 95 %).
+RIVAL_EVALUATIONS = 8
+RIVAL_Z = 1.96
 POINTS_PER_WINDOW = 10
 STDERR_STEP = 1e-2
 DIFF_STEP = 1e-2
 COARSE_DIFF_STEP = 2e-2
+FINE_DIFF_STEP = 1e-3
 # Residuals are grouped in clusters of at least this many seconds for the standard errors.
 MIN_CLUSTER_S = 0.25
 MIN_CLUSTERS = 12
@@ -131,8 +139,9 @@ class FitResult:
 
 def default_free(model: AxisModel, fit_gain: bool = False) -> tuple[str, ...]:
     """Parameters fitted by default: ``Param.fit`` ones, without the encoder step (read from the
-    data) and ripple cycles (searched); J leaves the set when the gain is fitted."""
-    names = [k for k in model.free_param_names() if k not in ("quantization.step", "ripple.cycles_per_rev")]
+    data); J leaves the set when the gain is fitted. Ripple cycles are searched first (spectrum,
+    then starts a line width apart), then fitted as a real number with the rest."""
+    names = [k for k in model.free_param_names() if k != "quantization.step"]
     if fit_gain:
         names = [k for k in names if k != "inertia.J"]
     return tuple(names)
@@ -375,6 +384,71 @@ def parameter_covariance(
     return out
 
 
+def _widened_for_rivals(
+    coords: _Coords,
+    probe: Callable[[FloatArray], FloatArray],
+    x_best: FloatArray,
+    rivals: Sequence[FloatArray],
+    stderr: Mapping[str, float],
+    per_window: int,
+    window_s: float,
+) -> dict[str, float]:
+    """Standard errors at least half the distance to a rival minimum the data cannot reject.
+
+    The local standard errors describe one basin. When another (a delay of 0.5 ms against 6 ms
+    with stiction, a second belt resonance) fits the same windows about as well, the data do
+    not decide between them, and ±0.3 ms around 6 ms would be a confident wrong answer. The
+    comparison is Vuong's test of non-nested models on the windows' sums of squares: the
+    rival's excess D = Σ_w (S_rival,w − S_best,w) against its spread over clusters of windows
+    longer than the residuals' correlation time; |z| < 1.96 is a rival the data cannot reject.
+    """
+    f_best = probe(x_best).reshape(-1, per_window)
+    s_best = np.sum(f_best * f_best, axis=1)
+    clusters = _cluster_ids(f_best, window_s)
+    best_vals, _ = coords.values(x_best)
+    out = dict(stderr)
+    for x in rivals:
+        f = probe(x).reshape(-1, per_window)
+        d = np.bincount(clusters, weights=np.sum(f * f, axis=1) - s_best)
+        c = d.size
+        spread = math.sqrt(c * float(np.var(d)) * c / max(c - 1, 1)) if c > 1 else 0.0
+        if not float(d.sum()) < RIVAL_Z * spread:
+            continue
+        vals, _ = coords.values(x)
+        for name, v in vals.items():
+            if name not in out:
+                continue
+            delta = v - best_vals[name]
+            if name.endswith(".phase"):
+                delta = math.remainder(delta, 2.0 * math.pi)
+            out[name] = max(out[name], 0.5 * abs(delta))
+    return out
+
+
+def _diff_step(name: str) -> float:
+    """Relative finite-difference step of a coordinate."""
+    if name == "backlash.width":
+        return COARSE_DIFF_STEP
+    if name == "ripple.cycles_per_rev":
+        # 1 % of 30 cycles turns the phase at the end of a 1.6 rad span by 0.5 rad: far past
+        # where the cost is linear. 0.1 % moves it by 0.05 rad.
+        return FINE_DIFF_STEP
+    return DIFF_STEP
+
+
+def _at_a_bound(coords: _Coords, x: FloatArray) -> bool:
+    """Whether a hidden-state parameter (belt frequency or damping, backlash width) ended within
+    1 % of a catalogue bound: a start whose short fit runs there has left the model's domain (a
+    0.5 Hz belt with a tenfold J is a free load the observer steers, not a resonance found), so
+    a start that stays inside wins over it whatever their costs."""
+    for i, n in enumerate(coords.names):
+        if n in HIDDEN_STATE_PARAMS:
+            lo, hi, v = coords.lower[i], coords.upper[i], x[i]
+            if v <= lo * 1.01 or (math.isfinite(hi) and v >= hi * 0.99):
+                return True
+    return False
+
+
 def fit_model(
     meas: Measurement,
     model: AxisModel,
@@ -445,21 +519,29 @@ def fit_model(
     noise = max(est.noise_rad, 1e-300)
     n_eval = 0
 
-    def residuals(x: FloatArray) -> FloatArray:
-        nonlocal n_eval
-        check_cancel()
-        n_eval += 1
-        if progress is not None and n_eval % 10 == 0:
-            progress(min(0.95, 0.1 + 0.85 * n_eval / 150.0))
-        m = coords.decode(model0, x)
-        e = with_load_observer(est, m, meas) if two_mass else est
-        pred = predict_windows(m, u, dt, starts, k + 1, e.initial_states(starts))[:, 1 + cols]
-        r: FloatArray = ((y_win - pred) / noise).ravel()
-        return r
+    def windowed(stride: int) -> Callable[[FloatArray], FloatArray]:
+        """Residuals (every ``stride``-th window) as a function of the coordinates."""
+        sel_starts, sel_y = starts[::stride], y_win[::stride]
+
+        def residuals(x: FloatArray) -> FloatArray:
+            nonlocal n_eval
+            check_cancel()
+            n_eval += 1
+            if progress is not None and n_eval % 10 == 0:
+                progress(min(0.95, 0.1 + 0.85 * n_eval / 150.0))
+            m = coords.decode(model0, x)
+            e = with_load_observer(est, m, meas) if two_mass else est
+            pred = predict_windows(m, u, dt, sel_starts, k + 1, e.initial_states(sel_starts))[:, 1 + cols]
+            r: FloatArray = ((sel_y - pred) / noise).ravel()
+            return r
+
+        return residuals
+
+    residuals = windowed(1)
 
     x0 = coords.encode(model0)
     # Contact events make the backlash cost step-like at small scales: difference it coarsely.
-    steps = np.array([COARSE_DIFF_STEP if n == "backlash.width" else DIFF_STEP for n in coords.names])
+    steps = np.array([_diff_step(n) for n in coords.names])
 
     def solve(start: FloatArray) -> Any:
         return least_squares(
@@ -474,6 +556,25 @@ def fit_model(
             max_nfev=MAX_EVALUATIONS,
         )
 
+    probe = windowed(PROBE_STRIDE)
+    tried: list[FloatArray] = []
+    if start.alternatives:
+        # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
+        # base parameters not yet refitted. A short fit from each on a quarter of the windows,
+        # then the full fit from the best.
+        trials = []
+        for cand in (model0, *start.alternatives):
+            trial = least_squares(
+                probe,
+                coords.encode(cand),
+                bounds=(coords.lower, coords.upper),
+                method="trf",
+                x_scale=1.0,
+                diff_step=steps,
+                max_nfev=PROBE_EVALUATIONS,
+            )
+            trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
+        x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
     sol = solve(x0)
     if "backlash.width" in coords.names:
         # The width's cost is step-like; the first pass moved the other parameters. Search the
@@ -491,6 +592,34 @@ def fit_model(
     clusters = _cluster_ids(resid.reshape(-1, cols.size), k * dt)
     cov = parameter_covariance(jac, resid, clusters, cols.size)
     stderr = coords.stderr(sol.x, cov)
+    if start.rivals and "delay.seconds" in coords.names:
+        # The rival delays are hypotheses (none, one sample, another minimum of the search's
+        # profile): hold the delay there and refit the rest briefly. The belt's and the ripple's
+        # other basins are starts, not hypotheses: their short fits choose where to begin.
+        i_d = coords.names.index("delay.seconds")
+        keep = np.arange(coords.names.__len__()) != i_d
+        for cand in start.rivals:
+            x_r = coords.encode(cand)
+
+            def held(x_free: FloatArray, x_r: FloatArray = x_r) -> FloatArray:
+                x_full = x_r.copy()
+                x_full[keep] = x_free
+                return probe(x_full)
+
+            got = least_squares(
+                held,
+                x_r[keep],
+                bounds=(coords.lower[keep], coords.upper[keep]),
+                method="trf",
+                x_scale=1.0,
+                diff_step=steps[keep],
+                max_nfev=RIVAL_EVALUATIONS,
+            ).x
+            x_full = x_r.copy()
+            x_full[keep] = got
+            tried.append(x_full)
+    if tried:
+        stderr = _widened_for_rivals(coords, probe, sol.x, tried, stderr, cols.size, PROBE_STRIDE * k * dt)
     return _finish(
         meas,
         fitted,

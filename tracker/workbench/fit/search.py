@@ -51,18 +51,34 @@ BACKLASH_GRID_COUNTS = tuple(float(x) for x in np.geomspace(1.0, 300.0, 26))
 COMPLIANCE_GRID_HZ = tuple(float(x) for x in np.geomspace(0.5, 300.0, 68))
 FINE_GRID = tuple(float(x) for x in np.linspace(0.88, 1.12, 13))
 COMPLIANCE_DAMPING_GRID = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8)
+# Dampings tried at every coarse frequency (a lightly damped basin is deep only near its ζ).
+COARSE_DAMPING_GRID = (0.05, 0.15, 0.4)
+# Basins of the coarse frequency profile refined (the true one need not be the lowest there).
+RESONANCE_BASINS = 3
+# After the damping is set: frequency steps of 2 % (the basin is ±ζ wide, ζ down to ~0.04).
+RESONANCE_FINE_GRID = tuple(float(x) for x in np.linspace(0.94, 1.06, 7))
 # Low-pass of the rigid-body inverse dynamics for two-mass models (Hz).
 TWO_MASS_ID_CUTOFF_HZ = 2.0
+# Parameters of effects that act through a hidden state (searched by prediction only).
+HIDDEN_STATE_PARAMS = ("backlash.width", "compliance.frequency", "compliance.damping")
 # Grids on the prediction error use every GRID_WINDOW_STRIDE-th window (4× cheaper).
 GRID_WINDOW_STRIDE = 4
 
 
 @dataclass(frozen=True, slots=True)
 class StartValues:
-    """The fitter's starting model and the inverse-dynamics relative error (%) behind it."""
+    """The fitter's starting model and the inverse-dynamics relative error (%) behind it.
+
+    ``alternatives``: other starts in other basins of a multimodal parameter (a belt resonance),
+    best first; the fitter runs a short fit from each and goes on from the best. ``rivals``:
+    the start at other local minima of a searched profile (delay); the fitter checks after the
+    fit whether one of them fits as well, and widens the standard errors if so.
+    """
 
     model: AxisModel
     id_error_percent: float
+    alternatives: tuple[AxisModel, ...] = ()
+    rivals: tuple[AxisModel, ...] = ()
 
 
 def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int, stride: int = 1) -> float:
@@ -184,6 +200,32 @@ def _grid_on_id(
     return best
 
 
+def _delay_rivals(
+    meas: Measurement, est: StateEstimate, model: AxisModel, free: Sequence[str]
+) -> list[float]:
+    """Delays at the other local minima of the inverse-dynamics error over the delay grid.
+
+    Stiction and a delay both act at reversals, J and a delay both shape the answer to a step:
+    on a short or coarse log two delays far apart can explain it about equally well. Returns
+    the grid values at local minima other than the best (at most two), best first."""
+    prm = get_param("delay.seconds")
+    errs = []
+    for v in DELAY_GRID_S:
+        cand = replace_params(model, {"delay.seconds": min(max(v, prm.lower), prm.upper)})
+        try:
+            errs.append(_id_error(meas, est, cand, free))
+        except ConfigError:
+            errs.append(math.inf)
+    idx = _local_minima(errs, 3)
+    chosen = model.params["delay.seconds"]
+    # Always also "no transport delay": none, or one sample (a computational latency, the
+    # README's logging convention); the fit then asks whether the data reject them.
+    conventions = [0.0, meas.dt_s]
+    return [
+        v for v in [*(DELAY_GRID_S[i] for i in idx[1:]), *conventions] if abs(v - chosen) > 0.5 * meas.dt_s
+    ]
+
+
 def grid_on_prediction(
     meas: Measurement,
     est: StateEstimate,
@@ -217,18 +259,24 @@ def search_start(
     linear_free = [
         n for n in free if n.split(".")[0] not in ("delay", "saturation", "backlash", "compliance")
     ]
-    linear_free = [n for n in linear_free if n not in ("stiction.velocity", "gravity.phase", "ripple.phase")]
+    linear_free = [
+        n
+        for n in linear_free
+        if n not in ("stiction.velocity", "gravity.phase", "ripple.phase", "ripple.cycles_per_rev")
+    ]
     # Generic effects: only the parameters their torque is linear in (the rest: searched, below).
     linear_free = [
         n for n in linear_free if not is_generic(n.split(".")[0]) or n in linear_generic_params(m, free)
     ]
-    if m.has("ripple") and "ripple.amplitude" in free:
+    if m.has("ripple") and ("ripple.amplitude" in free or "ripple.cycles_per_rev" in free):
         m = replace_params(m, {"ripple.cycles_per_rev": find_ripple_cycles(meas, est, m)})
     w95 = float(np.percentile(np.abs(est.omega_rad_s), 95)) or 1.0
     umax = float(np.max(np.abs(meas.u_v)))
+    rival_delays: list[float] = []
     try:
         if "delay.seconds" in free:
             m = _grid_on_id(meas, est, m, "delay.seconds", DELAY_GRID_S, linear_free)
+            rival_delays = _delay_rivals(meas, est, m, linear_free)
         if "saturation.limit" in free and umax > 0:
             m = _grid_on_id(
                 meas, est, m, "saturation.limit", [f * umax for f in SATURATION_GRID], linear_free
@@ -266,13 +314,81 @@ def search_start(
     hybrid = replace_params(
         own, {n: v for n, v in m_id.params.items() if n.split(".")[0] not in BASE_EFFECTS}
     )
-    m_id = min((m_id, own, hybrid), key=lambda cand: window_cost(meas, est, cand, k))
-    # Hidden-state effects are searched by prediction on the chosen start: inverse dynamics has no
-    # hidden state, and through a wide dead band it returns nonsense (J ten times too small), on
-    # which no width predicts better than none.
-    return StartValues(
-        _search_hidden_state(meas, est, m_id, free, k), idf.relative_error_percent if idf else math.nan
+    id_error = idf.relative_error_percent if idf else math.nan
+    starts: list[AxisModel] = []
+    for cand in (m_id, own, hybrid):
+        if all(cand.params != c.params for c in starts):
+            starts.append(cand)
+    if not any(n in free for n in HIDDEN_STATE_PARAMS):
+        best = min(starts, key=lambda cand: window_cost(meas, est, cand, k))
+        cycles: tuple[AxisModel, ...] = ()
+        if "ripple.cycles_per_rev" in free and best.has("ripple"):
+            cycles = ripple_alternatives(meas, est, best, linear_free)
+        rivals = tuple(replace_params(best, {"delay.seconds": v}) for v in rival_delays)
+        return StartValues(best, id_error, cycles, rivals)
+    # Hidden-state effects are searched by prediction: inverse dynamics has no hidden state, and
+    # through a wide dead band it returns nonsense (J ten times too small), on which no width
+    # predicts better than none; through a belt it can misjudge J by half, on which a stiff belt
+    # predicts better than the true resonance. Judged at the catalogue's default width or
+    # frequency, the starts cannot be ranked either: search on each start, keep the best.
+    per_start = [_search_hidden_state(meas, est, cand, free, k) for cand in starts]
+    ranked = sorted(
+        (m for found in per_start for m in found), key=lambda cand: window_cost(meas, est, cand, k)
     )
+    # Other basins worth a fit of their own: each start's best two (its base values decide which
+    # resonance predicts best before they are refitted), in other basins than the best start.
+    others: list[AxisModel] = []
+    for found in per_start:
+        for m in found[:2]:
+            if m is not ranked[0] and all(_other_basin(m, o) for o in (ranked[0], *others)):
+                others.append(m)
+    rivals = tuple(replace_params(ranked[0], {"delay.seconds": v}) for v in rival_delays)
+    return StartValues(ranked[0], id_error, tuple(others), rivals)
+
+
+def ripple_alternatives(
+    meas: Measurement, est: StateEstimate, model: AxisModel, linear_free: Sequence[str]
+) -> tuple[AxisModel, ...]:
+    """Starts at other cycle counts for the fitter to try: n ± π/span and n ± 2π/span.
+
+    Over a span of θ a line of sin(nθ) is 2π/span wide in n (3.8 cycles per revolution over
+    1.65 rad), and the residual torque the spectrum is taken from carries the smoother's lag and
+    the other effects' misfit, so its peak can sit a line width off (37 for 39). The k-step
+    prediction has a basin about π/span wide around the true n: starts spaced by that much
+    cover the line, each with the amplitude and phase inverse dynamics finds at its n.
+    """
+    mov = moving_mask(est.omega_rad_s)
+    span = float(np.ptp(est.theta_rad[mov])) if np.any(mov) else 0.0
+    if span <= 0.0:
+        return ()
+    n0 = model.params["ripple.cycles_per_rev"]
+    step = math.pi / span
+    prm = get_param("ripple.cycles_per_rev")
+    keep = [*linear_free, "ripple.phase"]
+    out = []
+    for j in (-2, -1, 1, 2):
+        n = n0 + j * step
+        if not prm.lower <= n <= prm.upper:
+            continue
+        cand = replace_params(model, {"ripple.cycles_per_rev": n})
+        try:
+            idf = fit_inverse_dynamics(meas, est, cand, linear_free, cutoff_hz=_cutoff_hz(cand))
+        except ConfigError:
+            continue
+        out.append(replace_params(cand, {n_: v for n_, v in idf.params.items() if n_ in keep}))
+    return tuple(out)
+
+
+def _other_basin(a: AxisModel, b: AxisModel) -> bool:
+    """Whether two starts lie in different basins of the belt frequency (more than 15 % apart,
+    or the same frequency from base values more than 15 % apart)."""
+    fa, fb = a.params.get("compliance.frequency"), b.params.get("compliance.frequency")
+    if fa is None or fb is None:
+        return False
+    if abs(math.log(fa / fb)) > math.log(1.15):
+        return True
+    ja, jb = a.params["inertia.J"], b.params["inertia.J"]
+    return abs(math.log(ja / jb)) > math.log(1.15)
 
 
 def _generic_grids(model: AxisModel, free: Sequence[str]) -> list[tuple[str, list[float]]]:
@@ -289,8 +405,9 @@ def _generic_grids(model: AxisModel, free: Sequence[str]) -> list[tuple[str, lis
 
 def _search_hidden_state(
     meas: Measurement, est: StateEstimate, m_id: AxisModel, free: Sequence[str], k: int
-) -> AxisModel:
-    """Grid searches by k-step prediction for backlash width and belt frequency/damping."""
+) -> list[AxisModel]:
+    """Grid searches by k-step prediction for backlash width and belt frequency/damping: the
+    searched model, with the belt's other basins after it (see :func:`search_resonance`)."""
     unit = max(encoder_step_rad(meas.theta_rad), est.noise_rad * math.sqrt(12.0))
     if "backlash.width" in free:
         # From one count up to a tenth of the travel: counts alone (or the noise level, on a log
@@ -304,15 +421,58 @@ def _search_hidden_state(
         w0 = m_id.params["backlash.width"]
         m_id = grid_on_prediction(meas, est, m_id, "backlash.width", [w0 * f for f in FINE_GRID], k)
     if "compliance.frequency" in free:
-        nyq = 0.5 / meas.dt_s
-        m_id = grid_on_prediction(
-            meas, est, m_id, "compliance.frequency", [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq], k
-        )
-        f0 = m_id.params["compliance.frequency"]
-        m_id = grid_on_prediction(meas, est, m_id, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
-        if "compliance.damping" in free:
-            m_id = grid_on_prediction(meas, est, m_id, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
-    return m_id
+        return search_resonance(meas, est, m_id, "compliance.damping" in free, k)
+    return [m_id]
+
+
+def _local_minima(costs: Sequence[float], n: int) -> list[int]:
+    """Indices of the ``n`` lowest local minima of a cost profile (ends count), lowest first."""
+    c = list(costs)
+    idx = [i for i in range(len(c)) if (i == 0 or c[i] <= c[i - 1]) and (i == len(c) - 1 or c[i] <= c[i + 1])]
+    return sorted(idx, key=lambda i: c[i])[:n]
+
+
+def search_resonance(
+    meas: Measurement, est: StateEstimate, model: AxisModel, fit_damping: bool, k: int
+) -> list[AxisModel]:
+    """Belt frequency (and damping) by k-step prediction: a joint coarse search, then the best
+    few basins refined.
+
+    A lightly damped resonance's cost basin is only about ±ζ wide in frequency, and deep only
+    near the right damping: at a ratio-1.1 grid with the damping held at one value the true
+    basin (ζ = 0.04–0.2) is often stepped over, and a stiff belt far above the loop's bandwidth
+    (which predicts like a rigid axis) wins. So the coarse grid takes, at every frequency, the
+    best of a few dampings; then each of the :data:`RESONANCE_BASINS` lowest local minima is
+    refined (fine frequency grid, damping grid, fine frequency again). Returns the refined
+    basins, best first: with base parameters still off (inverse dynamics can misjudge J by half
+    through a belt) a stiff belt can predict better than the true resonance until J, b, Fc are
+    refitted with it, so the fitter tries each (:class:`StartValues`.alternatives).
+    """
+    nyq = 0.5 / meas.dt_s
+    freqs = [f for f in COMPLIANCE_GRID_HZ if f < 0.8 * nyq]
+    if not freqs:
+        return [model]
+    z0 = model.params["compliance.damping"]
+    zetas = COARSE_DAMPING_GRID if fit_damping else (z0,)
+    profile: list[tuple[float, AxisModel]] = []
+    for f in freqs:
+        cands = [replace_params(model, {"compliance.frequency": f, "compliance.damping": z}) for z in zetas]
+        costs = [window_cost(meas, est, c, k, GRID_WINDOW_STRIDE) for c in cands]
+        j = int(np.argmin(costs))
+        profile.append((costs[j], cands[j]))
+    found: list[tuple[float, AxisModel]] = []
+    for i in _local_minima([c for c, _ in profile], RESONANCE_BASINS):
+        m = profile[i][1]
+        f0 = m.params["compliance.frequency"]
+        m = grid_on_prediction(meas, est, m, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
+        if fit_damping:
+            m = grid_on_prediction(meas, est, m, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
+            f0 = m.params["compliance.frequency"]
+            m = grid_on_prediction(
+                meas, est, m, "compliance.frequency", [f0 * f for f in RESONANCE_FINE_GRID], k
+            )
+        found.append((window_cost(meas, est, m, k, GRID_WINDOW_STRIDE), m))
+    return [m for _, m in sorted(found, key=lambda cm: cm[0])]
 
 
 __all__ = [

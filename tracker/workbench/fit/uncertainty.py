@@ -3,8 +3,9 @@
 A parameter is *poorly determined* when its relative standard error exceeds
 ``UNCERTAIN_FRACTION`` (the fit's own threshold, 10 %) or when it is strongly correlated with
 another (|r| ≥ ``CORRELATION_WARNING``) and that costs precision (the fitter's
-``correlated`` pairs). The experiment comes from the parameter's effect in the catalogue
-(``Effect.experiment``), so it says what to record to pin that parameter.
+``correlated`` pairs), or when it ended on a bound of its catalogue range (not at zero). The
+experiment comes from the parameter's effect in the catalogue (``Effect.experiment``), so it
+says what to record to pin that parameter.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from tracker.plant.effects import CATALOGUE
+from tracker.errors import ConfigError
+from tracker.plant.effects import CATALOGUE, get_param
 from tracker.workbench.fit.fit import UNCERTAIN_FRACTION
 
 
@@ -44,6 +46,33 @@ class ParameterCertainty:
         }
 
 
+# A value within this fraction of a bound's size from it is "at" the bound.
+AT_BOUND_FRACTION = 1e-3
+
+
+def _at_bound(name: str, value: float) -> str | None:
+    """``"lower bound 0.5 Hz"`` when a fitted value sits on a catalogue bound, else None.
+
+    The standard error there is one-sided and means nothing: a belt frequency pinned at its
+    lowest value with a tight error is the fit leaving the model's range, not a measurement.
+    "On" means within 0.1 % of the bound's own size (bounds span decades: 1e-5 to 100 rad/s).
+    A bound of zero (no viscous friction, no backlash) is a physical value and is left to the
+    relative error, which is infinite there anyway; a phase wraps and has no bound.
+    """
+    if name.endswith(".phase"):
+        return None
+    try:
+        prm = get_param(name)
+    except ConfigError:
+        return None
+    if not math.isfinite(value):
+        return None
+    for which, bound in (("lower", prm.lower), ("upper", prm.upper)):
+        if bound != 0.0 and math.isfinite(bound) and abs(value - bound) <= AT_BOUND_FRACTION * abs(bound):
+            return f"{which} bound {bound:g} {prm.unit}"
+    return None
+
+
 def parameter_certainty(
     params: Mapping[str, float],
     stderr: Mapping[str, float],
@@ -68,6 +97,9 @@ def parameter_certainty(
             )
         if name in partners:
             reasons.append("correlated with " + ", ".join(partners[name]))
+        bound = _at_bound(name, value)
+        if bound is not None:
+            reasons.append(f"at the catalogue's {bound} (the fit ran out of the model's range there)")
         effect = CATALOGUE.get(name.split(".")[0])
         out.append(
             ParameterCertainty(

@@ -45,7 +45,8 @@ def test_fit_recovers_each_effects_parameters_within_10_percent(effect: str) -> 
     res = fit_model(meas, _start((effect,)))
     for name in CASES[effect]:
         if name == "ripple.cycles_per_rev":
-            assert res.params[name] == 21.0  # found by the spectral search, not by gradient
+            # searched on the spectrum, then fitted as a real number with the rest
+            assert res.params[name] == pytest.approx(21.0, abs=0.1)
             continue
         _assert_close(name, res.params[name], true.params[name])
     for name in ("inertia.J", "coulomb.torque"):

@@ -32,3 +32,33 @@ def test_every_catalogue_effect_with_fitted_parameters_says_how_to_pin_them() ->
     for name, effect in CATALOGUE.items():
         if any(p.fit for p in effect.params) and name != "quantization":
             assert effect.experiment, name
+
+
+def test_a_value_on_a_catalogue_bound_is_flagged_whatever_its_standard_error() -> None:
+    out = {
+        c.name: c
+        for c in parameter_certainty(
+            {"compliance.frequency": 0.5, "compliance.damping": 0.1, "viscous.b": 0.0},
+            {"compliance.frequency": 0.02, "compliance.damping": 0.001, "viscous.b": 1e-4},
+        )
+    }
+    f = out["compliance.frequency"]
+    assert f.poorly_determined and "lower bound 0.5 Hz" in f.reason
+    assert not out["compliance.damping"].poorly_determined
+    # zero is a physical value, not a range's end: b = 0 is judged by its (infinite) relative error
+    assert "bound" not in out["viscous.b"].reason and out["viscous.b"].poorly_determined
+
+
+def test_bounds_are_judged_on_their_own_scale_and_phases_have_none() -> None:
+    """A Stribeck velocity of 0.03 rad/s is not "at" the bound 1e-5 of a range up to 100, and a
+    phase of 3.14 is not at the end of a circle."""
+    out = {
+        c.name: c
+        for c in parameter_certainty(
+            {"stiction.velocity": 0.03, "ripple.phase": 3.1415, "saturation.limit": 10.0},
+            {"stiction.velocity": 1e-4, "ripple.phase": 0.01, "saturation.limit": 0.01},
+        )
+    }
+    assert not out["stiction.velocity"].poorly_determined
+    assert not out["ripple.phase"].poorly_determined
+    assert "upper bound 10 V" in out["saturation.limit"].reason
