@@ -14,6 +14,7 @@ from scipy import stats
 
 from tracker.errors import ConfigError
 from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_param
+from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.evidence import EvidenceContext
 from tracker.workbench.diagnose.kstep import (
@@ -37,6 +38,7 @@ MIN_KSTEP_GAIN = 0.05
 MIN_KSTEP_ROBUST = 0.025
 # Stiction is judged on its break-away excess when the moving data cannot see it.
 MIN_BREAKAWAY_T = 4.0
+MIN_BREAKAWAY_COUNT = 4  # starts from rest needed before their break-away bounds the stiction
 REFINE_TOP = 2
 MIN_BACKLASH_GAIN = 0.15  # share of the residual torque beyond a count's flicker at reversals
 MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but not explode
@@ -248,7 +250,7 @@ def judge_candidate(
             effect, cmp
         )
     passed = significant
-    significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand) is None
+    significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
     return Judged(effect, scr, cand, score, cmp, significant, screen_ok, passed=passed)
 
 
@@ -282,7 +284,7 @@ def refine_leaders(
         if score.sse < r.score.sse:
             r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
             r.passed = _kstep_ok(r.effect, r.cmp)
-            small = negligible(r.effect, refined) is not None
+            small = negligible(r.effect, refined, ctx) is not None
             r.significant = r.passed and _physical(r.effect, refined, ctx) and not small
 
 
@@ -409,13 +411,23 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     return True
 
 
-def negligible(effect: str, model: AxisModel) -> str | None:
-    """Why the effect's fitted values are too small to be a missing effect (its file says), or None."""
+def negligible(effect: str, model: AxisModel, ctx: EvidenceContext | None = None) -> str | None:
+    """Why the effect's fitted values are too small to be a missing effect (its file says), or None.
+
+    Stiction is also judged on its direct measurement when there is one: the break-away from
+    rest (:mod:`tracker.workbench.diagnose.breakaway`), whose 95 % upper bound must exceed the
+    Stribeck dip's share of Coulomb, whatever break-away the simulation fitted.
+    """
     try:
         check = get_effect(effect).negligible
     except ConfigError:
         return None
-    return check(model.params) if check is not None else None
+    why = check(model.params) if check is not None else None
+    ba = ctx.breakaway if ctx is not None else None
+    if why is None and effect == "stiction" and ba is not None and ba.count > MIN_BREAKAWAY_COUNT:
+        upper = ba.static_excess_nm + float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
+        why = stiction_effect.negligible_at_rest(float(model.params["coulomb.torque"]), upper)
+    return why
 
 
 def finding(row: Judged, ctx: EvidenceContext) -> str | None:
@@ -430,7 +442,7 @@ def finding(row: Judged, ctx: EvidenceContext) -> str | None:
         if row.model.params["delay.seconds"] < encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s):
             return "within the encoder's timing"
     if row.passed and _physical(row.effect, row.model, ctx):
-        return "significant but small" if negligible(row.effect, row.model) else None
+        return "significant but small" if negligible(row.effect, row.model, ctx) else None
     scr = row.screen
     detectable = scr.p_value <= MAX_SCREEN_P and scr.folds_improve and scr.gain_cv > 0.0
     agrees = row.cmp.improvement > 0.0 and row.cmp.robust_improvement > 0.0
