@@ -48,6 +48,7 @@ MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no del
 # which a LuGre truth has and the model does not: 1.6-1.7 samples on an independent generator's
 # clean logs with a one-sample latency).
 MIN_DRIVE_DELAY_SAMPLES = 2.0
+MIN_SLIDING_WINDOWS = 20  # windows of steady sliding needed to tell a delay from pre-sliding lag
 MAX_RESONANT_DAMPING = 1.0 / 2.0**0.5  # |H| of a second-order system peaks only below this
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 OVERWHELMING_P = 1e-10
@@ -249,6 +250,8 @@ def judge_candidate(
         significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_TWO_MASS and _kstep_ok(
             effect, cmp
         )
+    if effect == "delay" and significant:
+        significant = _lags_while_sliding(judge, cand, score)
     passed = significant
     significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
     return Judged(effect, scr, cand, score, cmp, significant, screen_ok, passed=passed)
@@ -284,6 +287,8 @@ def refine_leaders(
         if score.sse < r.score.sse:
             r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
             r.passed = _kstep_ok(r.effect, r.cmp)
+            if r.effect == "delay" and r.passed:
+                r.passed = _lags_while_sliding(judge, refined, score)
             small = negligible(r.effect, refined, ctx) is not None
             r.significant = r.passed and _physical(r.effect, refined, ctx) and not small
 
@@ -345,6 +350,23 @@ def _delay_search(
     return held_out_search(
         judge, base_score, [with_values(base, {"delay.seconds": d}, add="delay") for d in seconds]
     )
+
+
+def _lags_while_sliding(judge: KStepJudge, model: AxisModel, score: KStepScore) -> bool:
+    """Whether a delay beyond one sample also shows where the axis slides steadily.
+
+    A drive delay lags the whole input, so it predicts better wherever the command changes,
+    also in windows where the axis slides one way throughout. Friction's pre-sliding (LuGre's
+    bristles) lags the response only at rest and after reversals, where it looks like a delay
+    of a couple of samples: the delay beyond one sample (a computational latency, reported
+    apart) must cut the error of those windows by the k-step margin. Runs with too little
+    steady sliding to tell keep the judgement of the whole run.
+    """
+    sliding = judge.sliding()
+    if int(sliding.sum()) < MIN_SLIDING_WINDOWS:
+        return True
+    within_latency = with_values(model, {"delay.seconds": min(model.params["delay.seconds"], judge.dt)})
+    return judge.gain_where(judge.score(within_latency), score, sliding) >= MIN_KSTEP_GAIN
 
 
 def _explains_more(rich: Judged, simple: Judged, judge: KStepJudge) -> bool:
