@@ -236,7 +236,10 @@ def judge_candidate(
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
         screen_ok = (screen_ok and _physical(effect, cand, ctx)) or min(search.gains) >= MIN_HELD_OUT_GAIN
-    significant = screen_ok and _kstep_ok(effect, cmp, scr.p_value)
+    # A torque of position alone acts wherever the axis goes, over the whole run: its gain must
+    # not hinge on a few blocks, however overwhelming the torque regression.
+    overwhelming_p = scr.p_value if not _acts_everywhere(effect, cand, ctx) else 1.0
+    significant = screen_ok and _kstep_ok(effect, cmp, overwhelming_p)
     if effect == "backlash":
         significant = _backlash_significant(scr, screens, cmp)
     elif not screen_ok and two_mass and effect in TORQUE_EFFECTS and cmp.improvement > 0:
@@ -473,13 +476,29 @@ def finding(row: Judged, ctx: EvidenceContext) -> str | None:
     return None
 
 
+def _acts_everywhere(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
+    """Whether ``effect`` adds a torque of position alone (gravity, ripple, a bias, a cable's
+    drag by angle): the same at rest, slow or fast, either way, so it acts in every part of the
+    run, not only in its few fast moves (as a viscous asymmetry does)."""
+    if effect not in TORQUE_EFFECTS:
+        return False
+    sig = ctx.sig
+    theta, omega = sig.theta_rad[sig.use], sig.omega_rad_s[sig.use]
+    torque = get_effect(effect).torque_nm
+    moving = np.asarray(torque(model.params, theta, omega), dtype=float)
+    at_rest = np.asarray(torque(model.params, theta, np.zeros_like(omega)), dtype=float)
+    scale = float(np.max(np.abs(at_rest))) if at_rest.size else 0.0
+    return scale > 0.0 and bool(np.allclose(moving, at_rest, rtol=1e-9, atol=1e-12 * scale))
+
+
 def _kstep_ok(effect: str, cmp: Comparison, screen_p: float = 1.0) -> bool:
     """The simulation agrees with the screening.
 
     Torque effects are measured best by the torque regression (a small viscous asymmetry
     barely moves a 30 ms prediction, and only in the few fast moves of one direction): the
     simulation must agree in direction, also without its two best blocks unless the regression's
-    evidence is overwhelming. Effects that act through the command or a hidden state are where
+    evidence is overwhelming (``screen_p``; the caller passes 1 for a torque of position alone,
+    which acts all through the run: see :func:`_acts_everywhere`). Effects that act through the command or a hidden state are where
     inverse dynamics can be fooled (a clip level or a belt fitted to noise): they must win by a
     margin.
     """
