@@ -14,6 +14,7 @@ from scipy import stats
 
 from tracker.errors import ConfigError
 from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_param
+from tracker.plant.effects import compliance as compliance_effect
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.evidence import EvidenceContext
@@ -49,7 +50,7 @@ MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no del
 # clean logs with a one-sample latency).
 MIN_DRIVE_DELAY_SAMPLES = 2.0
 MIN_SLIDING_WINDOWS = 20  # windows of steady sliding needed to tell a delay from pre-sliding lag
-MAX_RESONANT_DAMPING = 1.0 / 2.0**0.5  # |H| of a second-order system peaks only below this
+MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-order system peaks only below this
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 OVERWHELMING_P = 1e-10
 MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
@@ -294,6 +295,8 @@ def refine_leaders(
                 r.passed = _lags_while_sliding(judge, refined, score)
             small = negligible(r.effect, refined, ctx) is not None
             r.significant = r.passed and _physical(r.effect, refined, ctx) and not small
+            if r.effect == "compliance" and compliance_effect.unresolved(refined.params, se) is not None:
+                r.significant = False
 
 
 def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:

@@ -78,3 +78,15 @@ def test_a_position_torque_the_simulation_does_not_confirm_is_no_gravity(fresh_b
     assert truth["hidden"] == [] and truth["axis"] == "pan"
     assert d.verdict is None
     assert not d.candidate("gravity").significant
+
+
+def test_a_belt_whose_resonance_the_data_do_not_establish_is_no_verdict(fresh_blind_set: Any) -> None:
+    """Regression (fresh seed): a 2 kHz PD+feed-forward log, LuGre friction, a 1000-count encoder,
+    a one-sample latency. A "belt" at 31 Hz with damping 0.69 ± 0.06 became the verdict: the
+    two-mass model's extra state fits the bristles' spring at rest and reversals. A belt is told by
+    its resonance peak, and a damping that may well be above 1/√2 has none: now no verdict. (The
+    true belts of the matrix fit damping 0.07-0.33, well resolved.)"""
+    truth, d = _diagnose(fresh_blind_set, "clean-018")
+    assert truth["hidden"] == [] and truth["friction_law"] == "lugre"
+    assert d.verdict is None
+    assert not d.candidate("compliance").significant
