@@ -50,7 +50,7 @@ MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no del
 # clean logs with a one-sample latency).
 MIN_DRIVE_DELAY_SAMPLES = 2.0
 MIN_SLIDING_WINDOWS = 20  # windows of steady sliding needed to tell a delay from pre-sliding lag
-MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-order system peaks only below this
+MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-order system peaks below
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 OVERWHELMING_P = 1e-10
 MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
@@ -501,9 +501,9 @@ def _kstep_ok(effect: str, cmp: Comparison, screen_p: float = 1.0) -> bool:
     barely moves a 30 ms prediction, and only in the few fast moves of one direction): the
     simulation must agree in direction, also without its two best blocks unless the regression's
     evidence is overwhelming (``screen_p``; the caller passes 1 for a torque of position alone,
-    which acts all through the run: see :func:`_acts_everywhere`). Effects that act through the command or a hidden state are where
-    inverse dynamics can be fooled (a clip level or a belt fitted to noise): they must win by a
-    margin.
+    which acts all through the run: see :func:`_acts_everywhere`). Effects that act through the
+    command or a hidden state are where inverse dynamics can be fooled (a clip level or a belt
+    fitted to noise): they must win by a margin.
     """
     if effect in TORQUE_EFFECTS:
         return cmp.improvement > 0.0 and (cmp.robust_improvement > 0.0 or screen_p <= OVERWHELMING_P)
