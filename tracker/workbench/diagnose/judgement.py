@@ -254,10 +254,10 @@ def judge_candidate(
         significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_TWO_MASS and _kstep_ok(
             effect, cmp
         )
-    if effect == "delay" and significant:
-        significant = _lags_while_sliding(judge, cand, score)
     passed = significant
     significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
+    if effect == "delay" and significant:
+        significant = _lags_while_sliding(judge, cand, score)
     return Judged(effect, scr, cand, score, cmp, significant, screen_ok, passed=passed)
 
 
@@ -291,12 +291,12 @@ def refine_leaders(
         if score.sse < r.score.sse:
             r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
             r.passed = _kstep_ok(r.effect, r.cmp)
-            if r.effect == "delay" and r.passed:
-                r.passed = _lags_while_sliding(judge, refined, score)
             small = negligible(r.effect, refined, ctx) is not None
             r.significant = r.passed and _physical(r.effect, refined, ctx) and not small
             if r.effect == "compliance" and compliance_effect.unresolved(refined.params, se) is not None:
                 r.significant = False
+            if r.effect == "delay" and r.significant:
+                r.significant = _lags_while_sliding(judge, refined, score)
 
 
 def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:
@@ -369,7 +369,7 @@ def _lags_while_sliding(judge: KStepJudge, model: AxisModel, score: KStepScore) 
     steady sliding to tell keep the judgement of the whole run.
     """
     sliding = judge.sliding()
-    if int(sliding.sum()) < MIN_SLIDING_WINDOWS:
+    if model.params["delay.seconds"] <= judge.dt or int(sliding.sum()) < MIN_SLIDING_WINDOWS:
         return True
     within_latency = with_values(model, {"delay.seconds": min(model.params["delay.seconds"], judge.dt)})
     return judge.gain_where(judge.score(within_latency), score, sliding) >= MIN_KSTEP_GAIN

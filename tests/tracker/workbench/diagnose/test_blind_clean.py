@@ -67,6 +67,17 @@ def test_a_lugre_lag_at_reversals_is_no_drive_delay(fresh_blind_set: Any) -> Non
     assert not d.candidate("delay").significant
 
 
+def test_a_one_sample_latency_is_still_found_and_judged_apart(fresh_blind_set: Any) -> None:
+    """Guard for the rule above (it must not touch a delay of about one sample): a 250 Hz
+    open-loop log with a one-sample latency. The latency is the finding "computational latency",
+    and the other candidates are judged against a model that has it (without, a stiction became
+    the verdict by explaining the latency's lag at starts)."""
+    truth, d = _diagnose(fresh_blind_set, "clean-038")
+    assert truth["hidden"] == [] and truth["latency_samples"] == 1
+    assert d.verdict is None
+    assert d.candidate("delay").finding == "computational latency"
+
+
 def test_a_position_torque_the_simulation_does_not_confirm_is_no_gravity(fresh_blind_set: Any) -> None:
     """Regression (fresh seed, its other half): a 1 kHz PID log on pan, Stribeck-shaped friction,
     a one-sample latency and a PRBS dither. The torque regression credited a sin θ torque with
