@@ -31,6 +31,24 @@ def negligible(params: Mapping[str, float]) -> str | None:
     return None
 
 
+def negligible_at_rest(coulomb_nm: float, excess_upper_nm: float) -> str | None:
+    """Why static friction measured directly is too small to count, or None.
+
+    ``excess_upper_nm`` is the upper end of the 95 % interval of the break-away torque over
+    Coulomb measured on starts from rest (the direct measure of static friction). When even that
+    stays under the Stribeck dip's share of Coulomb, a larger break-away fitted by simulation is
+    the model's Karnopp stick fitting something else (a Stribeck curve's dip, creep), not
+    static friction the axis has.
+    """
+    if coulomb_nm > 0 and excess_upper_nm < SMALL_EXCESS_RATIO * coulomb_nm:
+        return (
+            f"break-away measured from rest at most {100 * excess_upper_nm / coulomb_nm:.1f} % "
+            f"above Coulomb (95 % bound, under {100 * SMALL_EXCESS_RATIO:.0f} %): a Stribeck dip "
+            "of the kinetic friction, not stick-slip"
+        )
+    return None
+
+
 EFFECT = Effect(
     name="stiction",
     kind="torque",

@@ -185,7 +185,7 @@ def diagnose(
         candidates.append(_quantization_candidate(ctx, current.fit_percent, base_score))
     verdict = candidates[0].effect if candidates and candidates[0].significant else None
     notes = notes_for(candidates, ctx, verdict)
-    small = [(r.effect, negligible(r.effect, r.model)) for r in rows if r.passed and not r.significant]
+    small = [(r.effect, negligible(r.effect, r.model, ctx)) for r in rows if r.passed and not r.significant]
     notes += tuple(f"{effect} is detectable but small: {why}" for effect, why in small if why)
     far_off = base_model is not model and current.sse > FAR_OFF_RATIO * refit_score.sse
     if far_off:

@@ -14,6 +14,8 @@ from scipy import stats
 
 from tracker.errors import ConfigError
 from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_param
+from tracker.plant.effects import compliance as compliance_effect
+from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.evidence import EvidenceContext
 from tracker.workbench.diagnose.kstep import (
@@ -37,6 +39,7 @@ MIN_KSTEP_GAIN = 0.05
 MIN_KSTEP_ROBUST = 0.025
 # Stiction is judged on its break-away excess when the moving data cannot see it.
 MIN_BREAKAWAY_T = 4.0
+MIN_BREAKAWAY_COUNT = 4  # starts from rest needed before their break-away bounds the stiction
 REFINE_TOP = 2
 MIN_BACKLASH_GAIN = 0.15  # share of the residual torque beyond a count's flicker at reversals
 MIN_BACKLASH_KSTEP = -2.0  # k-step error may grow (unobservable gap state) but not explode
@@ -46,7 +49,8 @@ MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no del
 # which a LuGre truth has and the model does not: 1.6-1.7 samples on an independent generator's
 # clean logs with a one-sample latency).
 MIN_DRIVE_DELAY_SAMPLES = 2.0
-MAX_RESONANT_DAMPING = 1.0 / 2.0**0.5  # |H| of a second-order system peaks only below this
+MIN_SLIDING_WINDOWS = 20  # windows of steady sliding needed to tell a delay from pre-sliding lag
+MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-order system peaks below
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 OVERWHELMING_P = 1e-10
 MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
@@ -233,7 +237,10 @@ def judge_candidate(
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
         screen_ok = (screen_ok and _physical(effect, cand, ctx)) or min(search.gains) >= MIN_HELD_OUT_GAIN
-    significant = screen_ok and _kstep_ok(effect, cmp, scr.p_value)
+    # A torque of position alone acts wherever the axis goes, over the whole run: its gain must
+    # not hinge on a few blocks, however overwhelming the torque regression.
+    overwhelming_p = scr.p_value if not _acts_everywhere(effect, cand, ctx) else 1.0
+    significant = screen_ok and _kstep_ok(effect, cmp, overwhelming_p)
     if effect == "backlash":
         significant = _backlash_significant(scr, screens, cmp)
     elif not screen_ok and two_mass and effect in TORQUE_EFFECTS and cmp.improvement > 0:
@@ -248,7 +255,9 @@ def judge_candidate(
             effect, cmp
         )
     passed = significant
-    significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand) is None
+    significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
+    if effect == "delay" and significant:
+        significant = _lags_while_sliding(judge, cand, score)
     return Judged(effect, scr, cand, score, cmp, significant, screen_ok, passed=passed)
 
 
@@ -282,8 +291,12 @@ def refine_leaders(
         if score.sse < r.score.sse:
             r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
             r.passed = _kstep_ok(r.effect, r.cmp)
-            small = negligible(r.effect, refined) is not None
+            small = negligible(r.effect, refined, ctx) is not None
             r.significant = r.passed and _physical(r.effect, refined, ctx) and not small
+            if r.effect == "compliance" and compliance_effect.unresolved(refined.params, se) is not None:
+                r.significant = False
+            if r.effect == "delay" and r.significant:
+                r.significant = _lags_while_sliding(judge, refined, score)
 
 
 def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:
@@ -343,6 +356,23 @@ def _delay_search(
     return held_out_search(
         judge, base_score, [with_values(base, {"delay.seconds": d}, add="delay") for d in seconds]
     )
+
+
+def _lags_while_sliding(judge: KStepJudge, model: AxisModel, score: KStepScore) -> bool:
+    """Whether a delay beyond one sample also shows where the axis slides steadily.
+
+    A drive delay lags the whole input, so it predicts better wherever the command changes,
+    also in windows where the axis slides one way throughout. Friction's pre-sliding (LuGre's
+    bristles) lags the response only at rest and after reversals, where it looks like a delay
+    of a couple of samples: the delay beyond one sample (a computational latency, reported
+    apart) must cut the error of those windows by the k-step margin. Runs with too little
+    steady sliding to tell keep the judgement of the whole run.
+    """
+    sliding = judge.sliding()
+    if model.params["delay.seconds"] <= judge.dt or int(sliding.sum()) < MIN_SLIDING_WINDOWS:
+        return True
+    within_latency = with_values(model, {"delay.seconds": min(model.params["delay.seconds"], judge.dt)})
+    return judge.gain_where(judge.score(within_latency), score, sliding) >= MIN_KSTEP_GAIN
 
 
 def _explains_more(rich: Judged, simple: Judged, judge: KStepJudge) -> bool:
@@ -409,13 +439,23 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     return True
 
 
-def negligible(effect: str, model: AxisModel) -> str | None:
-    """Why the effect's fitted values are too small to be a missing effect (its file says), or None."""
+def negligible(effect: str, model: AxisModel, ctx: EvidenceContext | None = None) -> str | None:
+    """Why the effect's fitted values are too small to be a missing effect (its file says), or None.
+
+    Stiction is also judged on its direct measurement when there is one: the break-away from
+    rest (:mod:`tracker.workbench.diagnose.breakaway`), whose 95 % upper bound must exceed the
+    Stribeck dip's share of Coulomb, whatever break-away the simulation fitted.
+    """
     try:
         check = get_effect(effect).negligible
     except ConfigError:
         return None
-    return check(model.params) if check is not None else None
+    why = check(model.params) if check is not None else None
+    ba = ctx.breakaway if ctx is not None else None
+    if why is None and effect == "stiction" and ba is not None and ba.count > MIN_BREAKAWAY_COUNT:
+        upper = ba.static_excess_nm + float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
+        why = stiction_effect.negligible_at_rest(float(model.params["coulomb.torque"]), upper)
+    return why
 
 
 def finding(row: Judged, ctx: EvidenceContext) -> str | None:
@@ -430,7 +470,7 @@ def finding(row: Judged, ctx: EvidenceContext) -> str | None:
         if row.model.params["delay.seconds"] < encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s):
             return "within the encoder's timing"
     if row.passed and _physical(row.effect, row.model, ctx):
-        return "significant but small" if negligible(row.effect, row.model) else None
+        return "significant but small" if negligible(row.effect, row.model, ctx) else None
     scr = row.screen
     detectable = scr.p_value <= MAX_SCREEN_P and scr.folds_improve and scr.gain_cv > 0.0
     agrees = row.cmp.improvement > 0.0 and row.cmp.robust_improvement > 0.0
@@ -439,15 +479,31 @@ def finding(row: Judged, ctx: EvidenceContext) -> str | None:
     return None
 
 
+def _acts_everywhere(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
+    """Whether ``effect`` adds a torque of position alone (gravity, ripple, a bias, a cable's
+    drag by angle): the same at rest, slow or fast, either way, so it acts in every part of the
+    run, not only in its few fast moves (as a viscous asymmetry does)."""
+    if effect not in TORQUE_EFFECTS:
+        return False
+    sig = ctx.sig
+    theta, omega = sig.theta_rad[sig.use], sig.omega_rad_s[sig.use]
+    torque = get_effect(effect).torque_nm
+    moving = np.asarray(torque(model.params, theta, omega), dtype=float)
+    at_rest = np.asarray(torque(model.params, theta, np.zeros_like(omega)), dtype=float)
+    scale = float(np.max(np.abs(at_rest))) if at_rest.size else 0.0
+    return scale > 0.0 and bool(np.allclose(moving, at_rest, rtol=1e-9, atol=1e-12 * scale))
+
+
 def _kstep_ok(effect: str, cmp: Comparison, screen_p: float = 1.0) -> bool:
     """The simulation agrees with the screening.
 
     Torque effects are measured best by the torque regression (a small viscous asymmetry
     barely moves a 30 ms prediction, and only in the few fast moves of one direction): the
     simulation must agree in direction, also without its two best blocks unless the regression's
-    evidence is overwhelming. Effects that act through the command or a hidden state are where
-    inverse dynamics can be fooled (a clip level or a belt fitted to noise): they must win by a
-    margin.
+    evidence is overwhelming (``screen_p``; the caller passes 1 for a torque of position alone,
+    which acts all through the run: see :func:`_acts_everywhere`). Effects that act through the
+    command or a hidden state are where inverse dynamics can be fooled (a clip level or a belt
+    fitted to noise): they must win by a margin.
     """
     if effect in TORQUE_EFFECTS:
         return cmp.improvement > 0.0 and (cmp.robust_improvement > 0.0 or screen_p <= OVERWHELMING_P)

@@ -181,6 +181,7 @@ class KStepJudge:
         self.k_settle = self.k // 3  # samples a hidden-state start may use to settle
         # Squared error per sample that is only measurement noise (quantization step²/12).
         self.noise_floor = max(sig.encoder_step_rad, 1e-12) ** 2 / 12.0
+        self.encoder_step_rad = max(sig.encoder_step_rad, 1e-12)
 
     def initial_states(self, model: AxisModel) -> FloatArray:
         x0 = np.empty((self.starts.size, STATE_SIZE))
@@ -219,6 +220,23 @@ class KStepJudge:
         end = e[:, -1]
         fit = 100.0 * (1.0 - float(np.linalg.norm(end)) / self.end_norm)
         return KStepScore(np.sum(e[:, self.k_settle + 1 :] ** 2, axis=1), end, fit)
+
+    def sliding(self) -> NDArray[np.bool_]:
+        """Windows in which the axis slides one way throughout, from a horizon before the start
+        to the end (no rest, no reversal), by at least two encoder counts per horizon.
+
+        Friction's pre-sliding (the bristles of LuGre, the contact's elasticity) acts only at
+        rest and for a short travel after a reversal; in these windows it is spent.
+        """
+        v_min = 2.0 * self.encoder_step_rad / (self.k * self.dt)
+        idx = (self.starts - self.k)[:, None] + np.arange(2 * self.k + 1)[None, :]
+        om = self.omega_s[np.clip(idx, 0, self.omega_s.size - 1)]
+        return np.asarray(np.all(om > v_min, axis=1) | np.all(om < -v_min, axis=1))
+
+    def gain_where(self, base: KStepScore, cand: KStepScore, mask: NDArray[np.bool_]) -> float:
+        """Share of the base model's error removed over the windows in ``mask`` (0 when none)."""
+        b = float(base.window_sse[mask].sum())
+        return 1.0 - float(cand.window_sse[mask].sum()) / b if b > 0 else 0.0
 
     def half_gains(self, base: KStepScore, cand: KStepScore) -> tuple[float, float]:
         """Error reduction on each half of the run (alternating 1 s blocks)."""
