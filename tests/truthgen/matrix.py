@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import os
 import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
@@ -213,6 +215,21 @@ def build_matrix() -> tuple[CaseSpec, ...]:
                 )
             )
     return tuple(cases)
+
+
+@contextmanager
+def seeded(seed: int) -> Iterator[None]:
+    """The matrix of another seed (a fresh blind set) inside the block: ``build_matrix`` and
+    ``generate_case`` read it; the cached matrix is cleared on the way in and out."""
+    global MATRIX_SEED
+    saved = MATRIX_SEED
+    MATRIX_SEED = seed
+    build_matrix.cache_clear()
+    try:
+        yield
+    finally:
+        MATRIX_SEED = saved
+        build_matrix.cache_clear()
 
 
 #: A small fixed sample (dev split): clean Karnopp 1 kHz, clean 500 Hz latency 0, gravity, delay,

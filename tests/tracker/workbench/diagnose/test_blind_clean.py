@@ -24,14 +24,8 @@ def fresh_blind_set() -> Iterator[Any]:
     so it is cleared on the way in and out."""
     import tests.truthgen.matrix as matrix
 
-    saved = matrix.MATRIX_SEED
-    matrix.MATRIX_SEED = FRESH_SEED
-    matrix.build_matrix.cache_clear()
-    try:
+    with matrix.seeded(FRESH_SEED):
         yield matrix
-    finally:
-        matrix.MATRIX_SEED = saved
-        matrix.build_matrix.cache_clear()
 
 
 def _diagnose(matrix: Any, case_id: str) -> tuple[dict[str, Any], Diagnosis]:

@@ -100,14 +100,8 @@ def fresh_blind_set() -> Iterator[Any]:
     the matrix is cached, so it is cleared on the way in and out."""
     import tests.truthgen.matrix as matrix
 
-    saved = matrix.MATRIX_SEED
-    matrix.MATRIX_SEED = 777
-    matrix.build_matrix.cache_clear()
-    try:
+    with matrix.seeded(777):
         yield matrix
-    finally:
-        matrix.MATRIX_SEED = saved
-        matrix.build_matrix.cache_clear()
 
 
 def test_a_lugre_lag_on_top_of_a_one_sample_latency_is_not_a_drive_delay(fresh_blind_set: Any) -> None:

@@ -38,14 +38,8 @@ def fresh_blind_set() -> Iterator[Any]:
     so it is cleared on the way in and out."""
     import tests.truthgen.matrix as matrix
 
-    saved = matrix.MATRIX_SEED
-    matrix.MATRIX_SEED = FRESH_SEED
-    matrix.build_matrix.cache_clear()
-    try:
+    with matrix.seeded(FRESH_SEED):
         yield matrix
-    finally:
-        matrix.MATRIX_SEED = saved
-        matrix.build_matrix.cache_clear()
 
 
 def test_a_dead_band_of_a_few_counts_is_named_backlash() -> None:
