@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from tracker.workbench.version_db import TABLES as VERSION_TABLES
+from tracker.workbench.version_db import immediate_transaction
 
 SCHEMA = (
     """
@@ -90,14 +91,8 @@ class Database:
 
     @contextmanager
     def _tx(self) -> Iterator[sqlite3.Connection]:
-        with self._lock:
-            self._conn.execute("BEGIN IMMEDIATE")
-            try:
-                yield self._conn
-            except BaseException:
-                self._conn.execute("ROLLBACK")
-                raise
-            self._conn.execute("COMMIT")
+        with self._lock, immediate_transaction(self._conn) as conn:
+            yield conn
 
     def transaction(self) -> AbstractContextManager[sqlite3.Connection]:
         """One write transaction for the modules that keep their own tables (app/persist.py,

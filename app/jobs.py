@@ -51,15 +51,19 @@ class JobRunner:
         self._cancelled: set[int] = set()
         self._tasks: dict[int, asyncio.Task[None]] = {}
 
-    def start(self, kind: str, params: dict[str, Any], fn: JobFn, *args: Any) -> int:
-        """Record the job and start ``fn(progress, cancel, *args)`` in a worker; returns its id.
-        TooManyRequests (429) when ``max_running`` jobs are already running."""
+    def _check_room(self) -> None:
+        """TooManyRequests (429) when ``max_running`` jobs are already running."""
         if len(self._tasks) >= self.max_running:
             raise TooManyRequests(
                 f"{len(self._tasks)} jobs are running (cap {self.max_running}, setting max_running_jobs); "
                 "wait for one to finish or cancel it",
                 retry_after_s=5.0,
             )
+
+    def start(self, kind: str, params: dict[str, Any], fn: JobFn, *args: Any) -> int:
+        """Record the job and start ``fn(progress, cancel, *args)`` in a worker; returns its id.
+        TooManyRequests (429) when ``max_running`` jobs are already running."""
+        self._check_room()
         job_id = self.db.add_job(kind, params)
         self._tasks[job_id] = asyncio.create_task(self._run(job_id, kind, fn, args), name=f"job-{job_id}")
         return job_id
@@ -67,12 +71,7 @@ class JobRunner:
     def start_local(self, kind: str, params: dict[str, Any], fn: LocalJobFn) -> int:
         """Record the job and run ``await fn(progress, cancel)`` on this event loop (see the module
         docstring); returns its id. TooManyRequests (429) as :meth:`start`."""
-        if len(self._tasks) >= self.max_running:
-            raise TooManyRequests(
-                f"{len(self._tasks)} jobs are running (cap {self.max_running}, setting max_running_jobs); "
-                "wait for one to finish or cancel it",
-                retry_after_s=5.0,
-            )
+        self._check_room()
         job_id = self.db.add_job(kind, params)
 
         def progress(fraction: float, message: str) -> None:

@@ -17,7 +17,7 @@ import math
 import sqlite3
 import time
 from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -129,6 +129,19 @@ class StoredMeasurement:
     axis: str
 
 
+@contextmanager
+def immediate_transaction(conn: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
+    """One write transaction on ``conn`` (autocommit mode): BEGIN IMMEDIATE, COMMIT when the
+    block ends, ROLLBACK if it raises. The console's database (app/db.py) uses it too."""
+    conn.execute("BEGIN IMMEDIATE")
+    try:
+        yield conn
+    except BaseException:
+        conn.execute("ROLLBACK")
+        raise
+    conn.execute("COMMIT")
+
+
 class ConsoleDatabase:
     """The console's SQLite file, opened for its measurements and model versions."""
 
@@ -162,15 +175,8 @@ class ConsoleDatabase:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    @contextmanager
-    def _tx(self) -> Iterator[sqlite3.Connection]:
-        self._conn.execute("BEGIN IMMEDIATE")
-        try:
-            yield self._conn
-        except BaseException:
-            self._conn.execute("ROLLBACK")
-            raise
-        self._conn.execute("COMMIT")
+    def _tx(self) -> AbstractContextManager[sqlite3.Connection]:
+        return immediate_transaction(self._conn)
 
     def measurements(self) -> list[StoredMeasurement]:
         rows = self._conn.execute("SELECT id, name, axis FROM measurements ORDER BY id").fetchall()
@@ -263,6 +269,7 @@ def _same_data(a: Measurement, b: Measurement) -> bool:
 
 __all__ = [
     "TABLES",
+    "immediate_transaction",
     "ConsoleDatabase",
     "StoredMeasurement",
     "fit_record",
