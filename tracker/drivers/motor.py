@@ -31,6 +31,13 @@ class MotorDriver(Protocol):
         ...
 
     @property
+    def sample_time_s(self) -> float:
+        """When the latest reading was taken (s), on the device's own clock where it has one: a
+        host's sample may slip, the board's time stamp does not (velocities in the friction-ID
+        come from these, not from the nominal period). The twin counts its samples."""
+        ...
+
+    @property
     def enabled(self) -> bool:
         """True while the amplifiers are enabled."""
         ...

@@ -106,7 +106,9 @@ class SerialMotorDriver(FaultLatch):
         self._last_error: str | None = None
         self._rtts: deque[float] = deque(maxlen=RTT_WINDOW)
         self._sample_times: deque[float] = deque(maxlen=RTT_WINDOW)
-        self.board_t_us = 0
+        self.board_t_us = 0  # the latest reading's time stamp as the board sent it (µs, 32 bits)
+        self._board_s = 0.0  # the board's clock unwrapped, continued across reconnects (s)
+        self._board_last_us: int | None = None
         self.exchanges = self.timeouts = self.errors = self.late_samples = 0
         self.refused = {a: 0 for a in AXES}
         self.connects = 0
@@ -121,6 +123,10 @@ class SerialMotorDriver(FaultLatch):
     @property
     def sample_period_s(self) -> float:
         return self._dt
+
+    @property
+    def sample_time_s(self) -> float:
+        return self._board_s
 
     @property
     def enabled(self) -> bool:
@@ -317,7 +323,9 @@ class SerialMotorDriver(FaultLatch):
         return volts
 
     def _absorb(self, counts: mp.Counts, expect_armed: bool = False) -> None:
-        self.board_t_us = counts.t_us
+        if self._board_last_us is not None:  # the 32-bit µs counter wraps every 71.6 min
+            self._board_s += ((counts.t_us - self._board_last_us) % 2**32) * 1e-6
+        self._board_last_us = self.board_t_us = counts.t_us
         for a, c in (("pan", counts.pan), ("tilt", counts.tilt)):
             ref_c, ref_rad = self._ref[a]
             self._counts[a] = c
@@ -386,6 +394,7 @@ class SerialMotorDriver(FaultLatch):
                 if rebooted:  # counts restarted from 0 where the axis stood: carry the angle on
                     self._ref[a] = (c, self._angle[a])
             self.re_referenced += int(rebooted)
+            self._board_last_us = None  # a new connection's clock (maybe a restarted board's): go on from here
             self._absorb(counts)
             self._failing_since = None
             self._next_due = None

@@ -113,6 +113,10 @@ class SimDriver(FaultLatch):
         return self._dt
 
     @property
+    def sample_time_s(self) -> float:
+        return self.samples * self._dt
+
+    @property
     def enabled(self) -> bool:
         return self._enabled
 

@@ -248,6 +248,19 @@ async def test_the_engine_steers_the_serial_rig_and_a_lost_port_is_a_fault(
         await task
 
 
+def test_sample_times_are_the_boards_clock_unwrapped(driver: SerialMotorDriver, emulator: MotorEmulator) -> None:
+    drive(driver, 0.0, 0.0, 0.02)
+    t0, b0 = driver.sample_time_s, emulator.board.now_s()
+    drive(driver, 0.0, 0.0, 0.4)
+    elapsed_board = emulator.board.now_s() - b0
+    assert driver.sample_time_s - t0 == pytest.approx(elapsed_board, abs=0.01)  # one or two samples
+    # The board's 32-bit microsecond counter wraps every 71.6 min; the driver's time goes on.
+    driver._absorb(mp.Counts(2**32 - 500, 0, 0, 0))
+    before = driver.sample_time_s
+    driver._absorb(mp.Counts(1500, 0, 0, 0))
+    assert driver.sample_time_s - before == pytest.approx(2000e-6)  # not minus an hour
+
+
 @pytest.mark.slow
 def test_friction_id_runs_on_the_emulator(driver: SerialMotorDriver) -> None:
     from tracker.workbench.experiments.friction_id import run_friction_id

@@ -212,15 +212,17 @@ def _constant_voltage_run(
     for _ in range(int(round(SETTLE_S / ax.dt))):
         ax.step(s * volts)
     th = [ax.d.read_encoder(ax.axis)]
+    times = [ax.d.sample_time_s]  # the device's time stamps: a host that slips does not bend them
     for _ in range(int(round(max_s / ax.dt))):
         th.append(ax.step(s * volts))
+        times.append(ax.d.sample_time_s)
         if s * (th[-1] - end_rad) > 0:
             break
         if len(th) > 100 and th[-1] == th[-51]:
             break  # stopped: friction won
     ax.step(0.0)
     y = np.asarray(th)
-    t = np.arange(y.size) * ax.dt
+    t = np.asarray(times)
     stopped = y.size > 100 and y[-1] == y[-51]
     if stopped or abs(y[-1] - y[0]) < 0.02:
         return FrictionPoint(s * volts, 0.0, gain * s * volts, 0.0, False)
@@ -228,7 +230,7 @@ def _constant_voltage_run(
     accel = 2 * c2
     torque = gain * s * volts - inertia * accel
     # Too fast: crossed the travel before a settled measurement; kept for the voltage search.
-    fast = y.size * ax.dt < MIN_MEASURE_S
+    fast = bool(t[-1] - t[0] < MIN_MEASURE_S - ax.dt)
     return FrictionPoint(s * volts, float(c1), float(torque), float(accel), not fast, fast)
 
 

@@ -100,3 +100,40 @@ def test_an_unbalanced_axis_gets_an_error_that_names_the_likely_cause() -> None:
     rig = _rig("pan", ("gravity",), {"gravity.torque": 0.05, "gravity.phase": 1.0})
     with pytest.raises(DataError, match="position-dependent torque"):
         run_friction_id(rig, "pan")
+
+
+class _SlippingHost:
+    """The rig seen by a host that falls behind: every third sample the board's time (and the
+    twin) moves on two periods while the host counts one, as a loaded host's serial driver does
+    against a board that runs in real time. Everything else is the twin's."""
+
+    def __init__(self, rig: SimDriver) -> None:
+        self._rig = rig
+        self._n = 0
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._rig, name)
+
+    @property
+    def sample_period_s(self) -> float:
+        return self._rig.sample_period_s
+
+    @property
+    def sample_time_s(self) -> float:
+        return self._rig.sample_time_s
+
+    def tick(self) -> None:
+        self._n += 1
+        self._rig.tick()
+        if self._n % 3 == 0:
+            self._rig.tick()  # the command held one period longer: the host slipped
+
+
+def test_velocities_come_from_the_device_clock_when_the_host_slips() -> None:
+    # With the nominal period the slipped run's velocities come out 4/3 too fast (viscous ~25 %
+    # low): the board's time stamps give the rig's friction whatever the host's timing.
+    res = run_friction_id(_SlippingHost(_rig("pan")), "pan")  # type: ignore[arg-type]
+    true = AxisModel.for_axis("pan").params
+    for line in (res.positive, res.negative):
+        assert line.viscous_nm_s_per_rad == pytest.approx(true["viscous.b"], rel=0.05)
+        assert line.coulomb_nm == pytest.approx(true["coulomb.torque"], rel=0.03)
