@@ -394,7 +394,7 @@ class SerialMotorDriver(FaultLatch):
                 if rebooted:  # counts restarted from 0 where the axis stood: carry the angle on
                     self._ref[a] = (c, self._angle[a])
             self.re_referenced += int(rebooted)
-            self._board_last_us = None  # a new connection's clock (maybe a restarted board's): go on from here
+            self._board_last_us = None  # a new link's clock (maybe a restarted board's) goes on from here
             self._absorb(counts)
             self._failing_since = None
             self._next_due = None

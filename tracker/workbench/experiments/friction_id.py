@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.drivers.motor import MotorDriver
-from tracker.errors import DataError, JobCancelled
+from tracker.errors import DataError, DriverFault, JobCancelled
 from tracker.plant.params import get_preset
 from tracker.units import AMPLIFIER_LIMIT_V
 
@@ -153,6 +153,9 @@ class _Axis:
         self.d.command(self.axis, max(-AMPLIFIER_LIMIT_V, min(AMPLIFIER_LIMIT_V, float(volts))))
         self.d.tick()
         self.ticks += 1
+        faults = self.d.faults()
+        if faults:  # the driver disabled itself: every run after this would read "did not move"
+            raise DriverFault(f"friction identification stopped on {self.axis}: {'; '.join(faults)}")
         return self.d.read_encoder(self.axis)
 
     def hold(self, seconds: float) -> float:

@@ -8,7 +8,7 @@ import pytest
 
 from tracker.cli import main
 from tracker.drivers.sim import SimDriver
-from tracker.errors import DataError, JobCancelled
+from tracker.errors import DataError, DriverFault, JobCancelled
 from tracker.plant.model import AxisModel
 from tracker.workbench.experiments.friction_id import run_friction_id
 
@@ -137,3 +137,25 @@ def test_velocities_come_from_the_device_clock_when_the_host_slips() -> None:
     for line in (res.positive, res.negative):
         assert line.viscous_nm_s_per_rad == pytest.approx(true["viscous.b"], rel=0.05)
         assert line.coulomb_nm == pytest.approx(true["coulomb.torque"], rel=0.03)
+
+
+class _TripsAfter(_SlippingHost):
+    """A rig whose driver latches a fault (the board's watchdog) after ``n`` samples."""
+
+    def __init__(self, rig: SimDriver, n: int) -> None:
+        super().__init__(rig)
+        self._limit = n
+
+    def tick(self) -> None:
+        self._n += 1
+        self._rig.tick()
+
+    def faults(self) -> tuple[str, ...]:
+        tripped = self._n >= self._limit
+        return ("serial:///dev/ttyRIG: the board's watchdog zeroed the command",) if tripped else ()
+
+
+def test_a_fault_during_the_sweep_stops_it_and_names_the_fault() -> None:
+    # Before: the disabled driver's runs all read "did not move" and the job blamed the voltages.
+    with pytest.raises(DriverFault, match="watchdog"):
+        run_friction_id(_TripsAfter(_rig("pan"), 3000), "pan")  # type: ignore[arg-type]
