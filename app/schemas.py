@@ -181,7 +181,10 @@ class AddEffectIn(Strict):
 
 class FrictionJobIn(Strict):
     axis: Axis = "pan"
-    source: Literal["rig", "practice"] = "rig"
+    source: Literal["rig", "practice", "live"] = Field(
+        "rig", description="rig: a twin built like the live rig; practice: the practice rig; live: the "
+                           "service's own DC rig (a serial motor controller), taken over for the sweep")
+    voltages: int = Field(10, ge=3, le=30, description="constant-voltage runs per direction")
 
 
 class SpeedIdJobIn(Strict):

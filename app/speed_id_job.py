@@ -53,10 +53,11 @@ def check_camera(engine: Any, driver_url: str) -> Any:  # noqa: ANN401 - engine 
 
 
 def refuse_while_held(engine: Any) -> None:  # noqa: ANN401 - the engine
-    """Conflict while the camera is taken over by a job (turning tracking on would do nothing)."""
+    """Conflict while the camera or rig is taken over by a job (turning tracking on would do
+    nothing)."""
     holder = getattr(getattr(engine, "driver", None), "held_by", None)
     if holder is not None:
-        raise Conflict(f"the camera is taken over by {holder}: cancel the job or wait for it to finish")
+        raise Conflict(f"the drive is taken over by {holder}: cancel the job or wait for it to finish")
 
 
 def speed_id_job(

@@ -11,7 +11,7 @@ from app.modelio import model_from_json, plain
 
 
 def friction_job(progress: Any, cancel: Any, rig_config: str | None, hidden_json: dict[str, Any] | None,
-                 hidden_axis: str, axis: str) -> dict[str, Any]:
+                 hidden_axis: str, axis: str, voltages: int = 10) -> dict[str, Any]:
     """Friction-ID on a simulated rig built like the live one (``rig_config``) or like the
     practice rig (``hidden_json`` on ``hidden_axis``)."""
     from tracker.drivers.sim import SimDriver, rig_models
@@ -26,6 +26,7 @@ def friction_job(progress: Any, cancel: Any, rig_config: str | None, hidden_json
         driver = SimDriver.from_config(rig_config)
     else:
         driver = SimDriver()
-    result = friction_id.run_friction_id(driver, axis=axis, progress=progress, cancel=cancel)
+    result = friction_id.run_friction_id(driver, axis=axis, voltages_per_direction=voltages,
+                                         progress=progress, cancel=cancel)
     out: dict[str, Any] = plain(result.to_dict())
     return out

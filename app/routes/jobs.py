@@ -4,8 +4,9 @@ cancel, result; :mod:`app.speed_id_job`) and the list of recent jobs.
 Friction-ID runs the seed's experiment automated — constant voltages across the range, the
 steady speed of each — through ``tracker.workbench.experiments.friction_id`` on a simulated rig built like
 the live one (``source="rig"``) or like the practice rig (``source="practice"``), in a worker
-process, so the live camera keeps tracking, on time, while the job runs. On real hardware the
-job would take the axis over.
+process, so the live camera keeps tracking, on time, while the job runs; or on the service's own
+DC rig (``source="live"``, a serial motor controller), which the job takes over while it runs
+(:mod:`app.friction_live_job`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from fastapi import APIRouter
 
 from app.auth import Engineer, Viewer
 from app.errors import NotFound
+from app.friction_live_job import KIND as LIVE_KIND
+from app.friction_live_job import check_rig, friction_live_job
 from app.modelio import model_to_json
 from app.routes.practice import practice_model, practice_state
 from app.schemas import FrictionJobIn, RowId, SpeedIdJobIn
@@ -28,6 +31,14 @@ router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 @router.post("/friction-id", status_code=202, summary="Start a friction-ID job; poll GET /jobs/{id}")
 async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dict[str, Any]:
+    """source "live": 409 when the driver is not a serial rig, tracking is on, or the rig is not
+    free to move (app/friction_live_job.py)."""
+    if body.source == "live":
+        rig = check_rig(svc.engine, svc.settings.driver)
+        job = friction_live_job(rig, body.axis, body.voltages)
+        job_id = svc.jobs.start_local(LIVE_KIND, body.model_dump(), job)
+        await svc.audit.record(who, "job.start", str(job_id), {"kind": LIVE_KIND, **body.model_dump()})
+        return svc.db.get_job(job_id) or {"id": job_id}
     hidden = practice_model(svc.db) if body.source == "practice" else None
     if body.source == "practice" and hidden is None:
         raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
@@ -35,7 +46,7 @@ async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dic
     rig_config = None if svc.settings.rig_config is None else str(svc.settings.rig_config)
     hidden_json = None if hidden is None else model_to_json(hidden, hidden_axis)
     job_id = svc.jobs.start("friction-id", body.model_dump(), friction_job, rig_config, hidden_json,
-                            hidden_axis, body.axis)
+                            hidden_axis, body.axis, body.voltages)
     await svc.audit.record(who, "job.start", str(job_id), {"kind": "friction-id", **body.model_dump()})
     return svc.db.get_job(job_id) or {"id": job_id}
 

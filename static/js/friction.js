@@ -1,5 +1,5 @@
 // Friction-ID page: start a job, follow its progress, cancel, plot torque against velocity.
-import { $, esc, fmt, post, toast } from "./api.js";
+import { $, esc, fmt, get, post, toast } from "./api.js";
 import { C, dots, line, makeChart, setData, watchSize } from "./charts.js";
 import { jobCard } from "./jobs.js";
 import * as speedid from "./speedid.js";
@@ -17,7 +17,17 @@ export function init() {
   speedid.init();
 }
 
-export function show() { speedid.show(); }
+// The live rig's sweep is offered when the service drives a DC rig over a serial controller.
+export async function show() {
+  speedid.show();
+  try {
+    const s = await get("/status");
+    const serial = s.driver?.kind === "serial";
+    $("fric-live").hidden = !serial;
+    $("fric-live").textContent = serial ? `this rig (${s.driver.url}), taken over while it runs` : "";
+    if (!serial && $("fric-source").value === "live") $("fric-source").value = "rig";
+  } catch { /* the status error shows on the live page */ }
+}
 
 export async function start(ev, source) {
   ev?.preventDefault();

@@ -20,6 +20,16 @@ line is sent as 0 V, and past the end stop (limit + 5°) a fault latches. No ans
 reconnects with back-off (0.25 s doubling to 5 s) and the board stays disarmed until the
 fault is cleared and the driver enabled again. If the host stops commanding altogether, the
 board's watchdog zeroes the command and disarms; the next reply says so and a fault latches.
+
+Lending (:meth:`SerialMotorDriver.take_over`): a job hands in an experiment as a generator
+that yields the volts for the next sample and is sent what that sample read (angle rad, the
+board's time s): the friction-ID sweep, :func:`tracker.workbench.experiments.friction_id.friction_sweep`.
+The control loop's own thread runs it, one step per exchange, so it keeps the loop's clock
+whatever else the machine does (a hand-off to the job's thread each sample was late on one
+sample in ten on a loaded machine). The loop sees the driver disabled meanwhile (its commands
+are ignored; it holds wherever the axes go and starts afresh from there when the rig comes
+back). The soft limits and faults apply to the experiment's commands as to the loop's; a fault
+or an error in the experiment ends the lending. The returned future holds the result.
 """
 
 from __future__ import annotations
@@ -29,7 +39,8 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Generator, Mapping
+from concurrent.futures import Future
 from typing import Any
 
 from tracker.drivers import motor_protocol as mp
@@ -46,6 +57,8 @@ IDLE_READ_S = 0.1
 MAX_BEHIND_S = 0.1
 HELLO_WAIT_S = 3.0  # an Arduino restarts when its port opens: ~2 s of boot loader first
 RTT_WINDOW = 500
+# An experiment run by the control loop (take_over): yields volts, is sent (angle rad, board time s).
+Experiment = Generator[float, tuple[float, float], Any]
 
 
 class _BoardError(Exception):
@@ -106,6 +119,10 @@ class SerialMotorDriver(FaultLatch):
         self._last_error: str | None = None
         self._rtts: deque[float] = deque(maxlen=RTT_WINDOW)
         self._sample_times: deque[float] = deque(maxlen=RTT_WINDOW)
+        self._held_by: str | None = None
+        self._lent: tuple[str, Experiment, Future[Any]] | None = None  # take_over's axis, experiment
+        self._lent_volts = 0.0  # the experiment's command for the next exchange
+        self.samples = 0  # sample exchanges the control loop made (tick)
         self.board_t_us = 0  # the latest reading's time stamp as the board sent it (µs, 32 bits)
         self._board_s = 0.0  # the board's clock unwrapped, continued across reconnects (s)
         self._board_last_us: int | None = None
@@ -130,7 +147,13 @@ class SerialMotorDriver(FaultLatch):
 
     @property
     def enabled(self) -> bool:
-        return self._enabled
+        """Enabled for the control loop (False while the rig is lent to a job: take_over)."""
+        return self._enabled and self._held_by is None
+
+    @property
+    def held_by(self) -> str | None:
+        """The job the rig is lent to (:meth:`take_over`), or None."""
+        return self._held_by
 
     @property
     def state(self) -> str:
@@ -148,6 +171,8 @@ class SerialMotorDriver(FaultLatch):
 
     def enable(self) -> None:
         self.refuse_if_faulted()
+        if self._held_by is not None:
+            raise DriverFault(f"{self.spec.url} is taken over by {self._held_by}")
         if not self.ready:
             raise DriverFault(f"cannot enable: {self.spec.url} is {self._state}, position unknown")
         self._u = {a: 0.0 for a in AXES}
@@ -158,11 +183,74 @@ class SerialMotorDriver(FaultLatch):
         self._u = {a: 0.0 for a in AXES}
 
     def command(self, axis: str, volts: float) -> None:
+        if self._held_by is None:
+            self._set_command(axis, volts)
+
+    def _set_command(self, axis: str, volts: float) -> None:
         self._check_axis(axis)
         if not math.isfinite(volts):
             self.latch_fault(f"{axis}: command {volts!r} V is not finite")
             return
         self._u[axis] = float(volts) if self._enabled else 0.0
+
+    def take_over(self, holder: str, axis: str, experiment: Experiment) -> Future[Any]:
+        """Lend ``axis`` to ``holder``'s ``experiment`` (see the module docstring), run by the
+        control loop's exchanges until it returns, fails, or :meth:`hand_back`; the future
+        gets its return value or its exception. DriverFault when the rig is lent already,
+        faulted, disabled or not connected."""
+        self._check_axis(axis)
+        self.refuse_if_faulted()
+        if self._held_by is not None:
+            raise DriverFault(f"{self.spec.url} is already taken over by {self._held_by}")
+        if not (self._enabled and self.ready):
+            raise DriverFault(f"{self.spec.url} must be connected and enabled ({self._state}"
+                              f"{'' if self._enabled else ', disabled'})")
+        done: Future[Any] = Future()
+        done.set_running_or_notify_cancel()
+        self._u = {a: 0.0 for a in AXES}
+        try:
+            first = next(experiment)
+        except BaseException as exc:  # noqa: BLE001 - handed to the future
+            done.set_exception(exc)
+            return done
+        self._lent = (axis, experiment, done)
+        self._lent_volts = first
+        self._held_by = holder
+        return done
+
+    def hand_back(self, error: BaseException | None = None) -> None:
+        """End :meth:`take_over` (0 V; the control loop steers again from where the axes are).
+        An experiment still running is closed, its future given ``error`` (default: DriverFault
+        saying it was stopped)."""
+        lent, self._lent = self._lent, None
+        self._u = {a: 0.0 for a in AXES}
+        self._held_by = None
+        if lent is not None:
+            _, experiment, done = lent
+            experiment.close()
+            if not done.done():
+                done.set_exception(error or DriverFault(f"{self.spec.url}: the experiment was stopped"))
+
+    def _lent_step(self) -> None:
+        """After an exchange: the experiment's next volts from this sample's reading."""
+        lent = self._lent
+        if lent is None:
+            return
+        axis, experiment, done = lent
+        if self._faults or not self._enabled:
+            why = "; ".join(self._faults) or "the rig was disabled"
+            self.hand_back(DriverFault(f"{self._held_by} stopped on {axis}: {why}"))
+            return
+        try:
+            self._lent_volts = experiment.send((self._angle[axis], self._board_s))
+        except StopIteration as stop:
+            self._lent = None
+            done.set_result(stop.value)
+            self.hand_back()
+        except BaseException as exc:  # noqa: BLE001 - the experiment's error is its job's, not the loop's
+            self._lent = None
+            done.set_exception(exc)
+            self.hand_back()
 
     def read_encoder(self, axis: str) -> float:
         return self._angle[self._check_axis(axis)]
@@ -186,9 +274,14 @@ class SerialMotorDriver(FaultLatch):
         self.max_lateness_s = max(self.max_lateness_s, late)
         self._next_due = due + self._dt
         self._sample_times.append(time.perf_counter())
+        lent = self._lent
+        if lent is not None:
+            self._set_command(lent[0], self._lent_volts)
         with self._lock:
             if self._port is not None and self._state == "connected":
                 self._cycle(idle=False)
+        self.samples += 1
+        self._lent_step()
 
     # -- life cycle ------------------------------------------------------------------------------
     def start(self) -> None:
@@ -233,6 +326,7 @@ class SerialMotorDriver(FaultLatch):
             "kind": "serial",
             "url": self.spec.url,
             "state": self._state,
+            "held_by": self._held_by,
             "board": None if h is None else f"{h.board} {h.board_id} (protocol {h.protocol})",
             "counts_per_rev": None if h is None else list(h.counts_per_rev),
             "gear_ratio": dict(self._gear),
@@ -420,3 +514,4 @@ class SerialMotorDriver(FaultLatch):
 
 def _ms(seconds: float) -> float:
     return round(1e3 * seconds, 3)
+

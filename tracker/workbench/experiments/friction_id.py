@@ -17,7 +17,7 @@ exactly the seed's method). J comes from the model (datasheet/CAD), as in the se
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,61 +137,67 @@ class FrictionResult:
         }
 
 
-class _Axis:
-    """One axis of a driver, sampled: command, tick, read; cancel and progress checks."""
+# The sweep is a generator: it yields the volts for the next sample and is sent back what that
+# sample read, (angle rad, the device's time s). Whoever owns the rig's clock drives it: the
+# sync loop of :func:`run_friction_id` on any MotorDriver, or a serial rig's control loop, one
+# sample per exchange, while the rig is lent to a job (tracker.drivers.serial_motor).
+Reading = tuple[float, float]
+Sweep = Generator[float, Reading, "FrictionResult"]
 
-    def __init__(self, driver: MotorDriver, axis: str, cancel: Callable[[], bool] | None) -> None:
-        self.d, self.axis, self.cancel = driver, axis, cancel
-        self.dt = driver.sample_period_s
+
+class _Axis:
+    """One axis as the sweep sees it: the latest reading, the sample count, cancel checks."""
+
+    def __init__(self, axis: str, dt: float, first: Reading, cancel: Callable[[], bool] | None) -> None:
+        self.axis, self.dt, self.cancel = axis, dt, cancel
+        self.th, self.t = first
         self.ticks = 0
 
-    def step(self, volts: float) -> float:
+    def step(self, volts: float) -> Generator[float, Reading, float]:
+        """One sample at ``volts`` (clipped to the amplifier); the angle it read."""
         if self.cancel is not None and self.ticks % 100 == 0 and self.cancel():
-            self.d.command(self.axis, 0.0)
-            self.d.disable()
             raise JobCancelled("friction identification cancelled")
-        self.d.command(self.axis, max(-AMPLIFIER_LIMIT_V, min(AMPLIFIER_LIMIT_V, float(volts))))
-        self.d.tick()
+        self.th, self.t = yield max(-AMPLIFIER_LIMIT_V, min(AMPLIFIER_LIMIT_V, float(volts)))
         self.ticks += 1
-        faults = self.d.faults()
-        if faults:  # the driver disabled itself: every run after this would read "did not move"
-            raise DriverFault(f"friction identification stopped on {self.axis}: {'; '.join(faults)}")
-        return self.d.read_encoder(self.axis)
+        return self.th
 
-    def hold(self, seconds: float) -> float:
-        th = self.d.read_encoder(self.axis)
+    def hold(self, seconds: float) -> Generator[float, Reading, float]:
+        th = self.th
         for _ in range(int(round(seconds / self.dt))):
-            th = self.step(0.0)
+            th = yield from self.step(0.0)
         return th
 
-    def move_to(self, target_rad: float, gain: float, inertia: float, max_s: float = 3.0) -> float:
+    def move_to(self, target_rad: float, gain: float, inertia: float,
+                max_s: float = 3.0) -> Generator[float, Reading, float]:
         """PD move to ``target_rad`` (20 rad/s loop), then let it settle with 0 V."""
         wn = 20.0
         kp, kd = wn * wn * inertia / gain, 2 * 0.8 * wn * inertia / gain
-        th = prev = self.d.read_encoder(self.axis)
+        th = prev = self.th
         vel = 0.0
         a = math.exp(-2 * math.pi * 50.0 * self.dt)
         still = 0
         for _ in range(int(round(max_s / self.dt))):
-            th = self.step(kp * (target_rad - th) - kd * vel)
+            th = yield from self.step(kp * (target_rad - th) - kd * vel)
             vel = a * vel + (1 - a) * (th - prev) / self.dt
             still = still + 1 if th == prev else 0
             prev = th
             # Friction leaves a small steady error without integral action: near and still is done.
             if abs(target_rad - th) < 0.15 and still * self.dt > 0.02:
                 break
-        return self.hold(0.05)
+        return (yield from self.hold(0.05))
 
 
-def _breakaway_volts(ax: _Axis, s: float, start_v: float, step_rad: float) -> float:
+def _breakaway_volts(
+    ax: _Axis, s: float, start_v: float, step_rad: float
+) -> Generator[float, Reading, float]:
     """Ramp the command from ``start_v`` in direction ``s`` until the axis moves; return |V|."""
-    th0 = ax.d.read_encoder(ax.axis)
+    th0 = ax.th
     v = start_v
     for _ in range(int(round(AMPLIFIER_LIMIT_V / RAMP_V_PER_S / ax.dt))):
         v += RAMP_V_PER_S * ax.dt
-        th = ax.step(s * v)
+        th = yield from ax.step(s * v)
         if abs(th - th0) > step_rad:
-            ax.step(0.0)
+            yield from ax.step(0.0)
             return v
     raise DataError(
         f"{ax.axis}: the axis did not move with {AMPLIFIER_LIMIT_V:g} V; is the amplifier enabled?"
@@ -207,23 +213,23 @@ def _constant_voltage_run(
     gain: float,
     inertia: float,
     max_s: float,
-) -> FrictionPoint:
+) -> Generator[float, Reading, FrictionPoint]:
     """The seed's run: 10 V pulse, then constant ``volts``; mean velocity and corrected torque."""
     n_pulse = max(1, int(round(pulse_s / ax.dt)))
     for _ in range(n_pulse):
-        ax.step(s * SEED_PULSE_V)
+        yield from ax.step(s * SEED_PULSE_V)
     for _ in range(int(round(SETTLE_S / ax.dt))):
-        ax.step(s * volts)
-    th = [ax.d.read_encoder(ax.axis)]
-    times = [ax.d.sample_time_s]  # the device's time stamps: a host that slips does not bend them
+        yield from ax.step(s * volts)
+    th = [ax.th]
+    times = [ax.t]  # the device's time stamps: a host that slips does not bend them
     for _ in range(int(round(max_s / ax.dt))):
-        th.append(ax.step(s * volts))
-        times.append(ax.d.sample_time_s)
+        th.append((yield from ax.step(s * volts)))
+        times.append(ax.t)
         if s * (th[-1] - end_rad) > 0:
             break
         if len(th) > 100 and th[-1] == th[-51]:
             break  # stopped: friction won
-    ax.step(0.0)
+    yield from ax.step(0.0)
     y = np.asarray(th)
     t = np.asarray(times)
     stopped = y.size > 100 and y[-1] == y[-51]
@@ -264,7 +270,7 @@ def run_friction_id(
     progress: Callable[[float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> FrictionResult:
-    """Run the friction-ID experiment on ``axis`` of ``driver``.
+    """Run the friction-ID experiment on ``axis`` of ``driver``, sample by sample here.
 
     Parameters
     ----------
@@ -282,41 +288,74 @@ def run_friction_id(
     -------
     FrictionResult
     """
+    driver.enable()
+    try:
+        first = (driver.read_encoder(axis), driver.sample_time_s)
+        sweep = friction_sweep(axis, driver.sample_period_s, first, gain_nm_per_v, inertia_kg_m2,
+                               voltages_per_direction, max_speed_rad_s, pulse_s, travel_rad, progress, cancel)
+        volts = next(sweep)
+        while True:
+            driver.command(axis, volts)
+            driver.tick()
+            faults = driver.faults()
+            if faults:  # the driver disabled itself: every run after this would read "did not move"
+                raise DriverFault(f"friction identification stopped on {axis}: {'; '.join(faults)}")
+            volts = sweep.send((driver.read_encoder(axis), driver.sample_time_s))
+    except StopIteration as done:
+        result: FrictionResult = done.value
+        return result
+    finally:
+        driver.command(axis, 0.0)
+        driver.disable()
+
+
+def friction_sweep(
+    axis: str,
+    dt: float,
+    first: Reading,
+    gain_nm_per_v: float | None = None,
+    inertia_kg_m2: float | None = None,
+    voltages_per_direction: int = 10,
+    max_speed_rad_s: float = 3.0,
+    pulse_s: float = SEED_PULSE_S,
+    travel_rad: float | None = None,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Sweep:
+    """The experiment of :func:`run_friction_id` as a generator (see ``Sweep``): ``dt`` the
+    sample period (s), ``first`` the reading before the first sample; the other arguments as
+    there. Its return value (``StopIteration.value``) is the :class:`FrictionResult`."""
     preset = get_preset(axis)
     gain = preset.gain_nm_per_v if gain_nm_per_v is None else float(gain_nm_per_v)
     inertia = preset.inertia_kg_m2 if inertia_kg_m2 is None else float(inertia_kg_m2)
     end = TRAVEL_FRACTION * (preset.soft_limit_rad if travel_rad is None else float(travel_rad))
-    ax = _Axis(driver, axis, cancel)
-    driver.enable()
+    ax = _Axis(axis, dt, first, cancel)
     total_runs = 2 * (voltages_per_direction + 1)
     done = 0
     points: list[FrictionPoint] = []
     breakaway: dict[float, float] = {}
     step_rad = 1e-3
-    try:
-        for s in (1.0, -1.0):
-            ax.move_to(-s * end, gain, inertia)
-            v_b = _breakaway_volts(ax, s, 0.4 * preset.coulomb_nm / gain, step_rad)
-            breakaway[s] = gain * v_b
+    for s in (1.0, -1.0):
+        yield from ax.move_to(-s * end, gain, inertia)
+        v_b = yield from _breakaway_volts(ax, s, 0.4 * preset.coulomb_nm / gain, step_rad)
+        breakaway[s] = gain * v_b
+        done += 1
+        if progress is not None:
+            progress(done / total_runs)
+        mine: list[FrictionPoint] = []
+        speeds = np.linspace(0.1, 1.0, voltages_per_direction) * max_speed_rad_s
+        for i in range(voltages_per_direction):
+            volts = _next_voltage(mine, s, v_b, speeds[i], gain, i)
+            yield from ax.move_to(-s * end, gain, inertia)
+            target = abs(speeds[i])
+            p_len = min(pulse_s, inertia * target / max(gain * SEED_PULSE_V, 1e-9))
+            run_s = min(2 * end / max(target, 0.05) + 0.5, MAX_RUN_S)
+            run = _constant_voltage_run(ax, s, volts, p_len, s * end, gain, inertia, run_s)
+            mine.append((yield from run))
             done += 1
             if progress is not None:
                 progress(done / total_runs)
-            mine: list[FrictionPoint] = []
-            speeds = np.linspace(0.1, 1.0, voltages_per_direction) * max_speed_rad_s
-            for i in range(voltages_per_direction):
-                volts = _next_voltage(mine, s, v_b, speeds[i], gain, i)
-                ax.move_to(-s * end, gain, inertia)
-                target = abs(speeds[i])
-                p_len = min(pulse_s, inertia * target / max(gain * SEED_PULSE_V, 1e-9))
-                run_s = min(2 * end / max(target, 0.05) + 0.5, MAX_RUN_S)
-                mine.append(_constant_voltage_run(ax, s, volts, p_len, s * end, gain, inertia, run_s))
-                done += 1
-                if progress is not None:
-                    progress(done / total_runs)
-            points += mine
-    finally:
-        driver.command(axis, 0.0)
-        driver.disable()
+        points += mine
     return FrictionResult(
         axis,
         gain,
@@ -356,4 +395,5 @@ def _next_voltage(
     return v_break * (1.0 + 0.01 * (i + 1))
 
 
-__all__ = ["FrictionLine", "FrictionPoint", "FrictionResult", "run_friction_id"]
+__all__ = ["FrictionLine", "FrictionPoint", "FrictionResult", "Reading", "Sweep", "friction_sweep",
+           "run_friction_id"]
