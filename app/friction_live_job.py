@@ -20,6 +20,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from app.errors import Conflict
+from app.lending import check_free
 from app.modelio import plain
 from tracker.errors import DriverFault
 
@@ -41,17 +42,7 @@ def check_rig(engine: Any, driver_url: str) -> Any:  # noqa: ANN401 - engine in,
             "'practice'; on a PTZ camera run the speed-table identification (POST /api/v1/jobs/speed-id)",
             driver=driver_url,
         )
-    st = engine.status()
-    if st.tracking:
-        raise Conflict("tracking is on: turn it off (PUT /api/v1/tracking) before the friction-ID "
-                       "sweep takes the rig over", mode=st.mode)
-    if rig.faults():
-        raise Conflict(f"drive fault latched ({'; '.join(rig.faults())}): clear it first", mode=st.mode)
-    if rig.held_by is not None:
-        raise Conflict(f"the rig is already taken over by {rig.held_by}")
-    if not (rig.enabled and rig.ready):
-        raise Conflict(f"rig {rig.spec.url} is {rig.state}{'' if rig.enabled else ', disabled'}: "
-                       "it must be connected and enabled", mode=st.mode)
+    check_free(engine, rig, "rig", "friction-ID sweep")
     return rig
 
 

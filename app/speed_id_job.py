@@ -20,6 +20,7 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from app.errors import Conflict
+from app.lending import check_free
 from app.modelio import plain
 from tracker.errors import ConfigError, DriverFault
 
@@ -38,26 +39,8 @@ def check_camera(engine: Any, driver_url: str) -> Any:  # noqa: ANN401 - engine 
             "(POST /api/v1/jobs/friction-id); a profile's twin: `tracker camera speed-id`",
             driver=driver_url,
         )
-    st = engine.status()
-    if st.tracking:
-        raise Conflict("tracking is on: turn it off (PUT /api/v1/tracking) before the speed-table "
-                       "identification takes the camera over", mode=st.mode)
-    if cam.faults():
-        raise Conflict(f"drive fault latched ({'; '.join(cam.faults())}): clear it first", mode=st.mode)
-    if cam.held_by is not None:
-        raise Conflict(f"the camera is already taken over by {cam.held_by}")
-    if not (cam.enabled and cam.ready):
-        raise Conflict(f"camera {cam.spec.url} is {cam.state}{'' if cam.enabled else ', disabled'}: "
-                       "it must be connected and enabled", mode=st.mode)
+    check_free(engine, cam, "camera", "speed-table identification")
     return cam
-
-
-def refuse_while_held(engine: Any) -> None:  # noqa: ANN401 - the engine
-    """Conflict while the camera or rig is taken over by a job (turning tracking on would do
-    nothing)."""
-    holder = getattr(getattr(engine, "driver", None), "held_by", None)
-    if holder is not None:
-        raise Conflict(f"the drive is taken over by {holder}: cancel the job or wait for it to finish")
 
 
 def speed_id_job(

@@ -9,9 +9,9 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.auth import Operator
+from app.lending import refuse_while_held
 from app.schemas import TrackingIn, TrackingOut
 from app.service import Svc
-from app.speed_id_job import refuse_while_held
 
 router = APIRouter(tags=["tracking"])
 

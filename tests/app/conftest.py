@@ -73,3 +73,14 @@ def poll(fn, deadline_s: float = 5.0, interval_s: float = 0.05):  # type: ignore
         time.sleep(interval_s)
         value = fn()
     return value
+
+
+@pytest.fixture
+def board(tmp_path: Path) -> Iterator[Any]:
+    """The motor controller emulator on a pseudo-terminal (a DC rig's serial board)."""
+    from tracker.drivers.motor_emulator import MotorEmulator
+
+    emu = MotorEmulator(pty_link=tmp_path / "ttyRIG")
+    emu.start()
+    yield emu
+    emu.close()

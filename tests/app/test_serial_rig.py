@@ -5,7 +5,6 @@ lost board is a fault that only an engineer clears, once the board is back."""
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -20,14 +19,6 @@ from tracker.drivers.motor_emulator import MotorEmulator
 from .conftest import free_port, poll
 
 API = "/api/v1"
-
-
-@pytest.fixture
-def board(tmp_path: Path) -> Iterator[MotorEmulator]:
-    emu = MotorEmulator(pty_link=tmp_path / "ttyRIG")
-    emu.start()
-    yield emu
-    emu.close()
 
 
 def test_service_steers_the_serial_rig_and_recovers_from_a_lost_board(
