@@ -71,6 +71,9 @@ from tracker.workbench.measurements.data import Measurement
 MODES = ("tracking", "manual", "hold", "disabled", "fault")
 
 
+_MOTOR_MEMBERS = tuple(m for m in MotorDriver.__dict__ if not m.startswith("_"))
+
+
 @dataclass(frozen=True, slots=True)
 class EngineConfig:
     """Engine settings. ``models`` are the design models (default: the seed presets)."""
@@ -142,6 +145,11 @@ class Engine:
         self._camera: CameraDriver | None = driver if isinstance(driver, CameraDriver) else None
         self._motor: MotorDriver | None = (
             driver if self._camera is None and isinstance(driver, MotorDriver) else None)
+        if self._camera is None and self._motor is None and self._fast is None:
+            missing = [m for m in _MOTOR_MEMBERS if not hasattr(driver, m)]
+            raise ConfigError(f"driver {type(driver).__name__} is neither a MotorDriver nor a "
+                              f"CameraDriver (it lacks {', '.join(missing) or 'a member'}: "
+                              "tracker/drivers/motor.py)")
         self._enable_when_ready = False  # a camera: enable_on_start waits for its first position
         self.config = config or EngineConfig()
         self._dt = driver.sample_period_s
@@ -514,12 +522,14 @@ class Engine:
         out = {a: np.zeros((n, N_REC)) for a in self._axes}
         drv = self._motor
         assert drv is not None
+        lent = getattr(drv, "held_axis", None)  # lent to a job: its commands, not the controller's
         for k in range(n):
             for a, ax in self._axes.items():
                 y = drv.read_encoder(a)
-                u = controller_step(ax.cp, ax.cs, y, float(targets[a][k])) if drv.enabled else 0.0
-                if not drv.enabled:
-                    ax.cs[S_INIT] = 0.0  # re-initialise on re-enable
+                active = drv.enabled and a != lent
+                u = controller_step(ax.cp, ax.cs, y, float(targets[a][k])) if active else 0.0
+                if not active:
+                    ax.cs[S_INIT] = 0.0  # re-initialise on re-enable or hand-back
                 drv.command(a, u)
                 out[a][k, R_Y], out[a][k, R_U] = y, u
                 out[a][k, 3], out[a][k, 4] = ax.cs[S_REF], ax.cs[S_OM]
@@ -564,6 +574,9 @@ class Engine:
             for a, value in (("pan", heard.pan_rad), ("tilt", heard.tilt_rad)):
                 lim = self._axes[a].limits
                 self._last_target[a] = float(np.clip(value, lim.lower_rad, lim.upper_rad))
+        lent = getattr(self._driver, "held_axis", None)
+        if lent is not None:  # an axis lent to a job (a sweep): held wherever the job takes it
+            self._last_target[lent] = start[lent] = self._axes[lent].y_rad
         frac = np.arange(1, n + 1) / n
         return {a: start[a] + (self._last_target[a] - start[a]) * frac for a in AXES}
 

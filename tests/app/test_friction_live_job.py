@@ -57,7 +57,9 @@ def test_the_sweep_takes_the_rig_over_measures_its_friction_and_hands_it_back(
     assert r.status_code == 202, r.text
     job_id = r.json()["id"]
     assert poll(lambda: status()["driver"]["held_by"] == "the friction-id job", 5.0), status()
-    assert status()["mode"] == "disabled"  # the loop holds wherever the sweep takes the axis
+    s = status()
+    assert s["mode"] == "hold" and s["driver"]["held_axis"] == "pan"
+    tilt_before = board.board.twin.load_rad("tilt")
     r = client.post(f"{API}/jobs/friction-id", headers=h, json={"axis": "tilt", "source": "live"})
     assert r.status_code == 409 and "taken over" in r.text
     r = client.put(f"{API}/tracking", headers=h, json={"enabled": True})
@@ -78,6 +80,8 @@ def test_the_sweep_takes_the_rig_over_measures_its_friction_and_hands_it_back(
     s = status()
     assert s["driver"]["held_by"] is None and s["mode"] == "hold" and not s["faults"]
     assert board.board.armed
+    # The loop kept steering the axis it still had: tilt held where it was all through the sweep.
+    assert abs(board.board.twin.load_rad("tilt") - tilt_before) < 0.01
 
 
 def test_the_live_sweep_needs_a_serial_rig(tmp_path: Path) -> None:

@@ -111,6 +111,10 @@ class ProtocolOnly:
         self.sample_period_s = rig.sample_period_s
 
     @property
+    def sample_time_s(self) -> float:
+        return self.rig.sample_time_s
+
+    @property
     def enabled(self) -> bool:
         return self.rig.enabled
 
@@ -287,3 +291,11 @@ def test_after_an_over_travel_the_axis_rests_on_its_end_stop_and_comes_back_once
     run(e, 1.5)
     assert not drv.faults()
     assert math.radians(-90.0) < drv.load_angle_rad("pan") < math.radians(-89.0)
+
+
+def test_a_driver_that_is_not_a_driver_is_refused_by_name() -> None:
+    # A driver written before the interface grew sample_time_s: refused, not run as nothing.
+    old = type("OldDriver", (), {k: v for k, v in ProtocolOnly.__dict__.items()
+                                 if k not in ("sample_time_s", "__dict__", "__weakref__")})
+    with pytest.raises(ConfigError, match="OldDriver.*sample_time_s"):
+        Engine(old(SimDriver()))

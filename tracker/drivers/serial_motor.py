@@ -26,10 +26,11 @@ that yields the volts for the next sample and is sent what that sample read (ang
 board's time s): the friction-ID sweep, :func:`tracker.workbench.experiments.friction_id.friction_sweep`.
 The control loop's own thread runs it, one step per exchange, so it keeps the loop's clock
 whatever else the machine does (a hand-off to the job's thread each sample was late on one
-sample in ten on a loaded machine). The loop sees the driver disabled meanwhile (its commands
-are ignored; it holds wherever the axes go and starts afresh from there when the rig comes
-back). The soft limits and faults apply to the experiment's commands as to the loop's; a fault
-or an error in the experiment ends the lending. The returned future holds the result.
+sample in ten on a loaded machine). Only the lent axis is the job's (``held_axis``): the loop's
+commands for it are ignored and it holds that axis wherever it goes, starting afresh from there
+when it comes back, while it goes on steering the other (a tilt axis left at 0 V would droop).
+The soft limits and faults apply to the experiment's commands as to the loop's; a fault or an
+error in the experiment ends the lending. The returned future holds the result.
 """
 
 from __future__ import annotations
@@ -147,8 +148,12 @@ class SerialMotorDriver(FaultLatch):
 
     @property
     def enabled(self) -> bool:
-        """Enabled for the control loop (False while the rig is lent to a job: take_over)."""
-        return self._enabled and self._held_by is None
+        return self._enabled
+
+    @property
+    def held_axis(self) -> str | None:
+        """The axis lent to a job (:meth:`take_over`), or None."""
+        return None if self._lent is None else self._lent[0]
 
     @property
     def held_by(self) -> str | None:
@@ -183,7 +188,7 @@ class SerialMotorDriver(FaultLatch):
         self._u = {a: 0.0 for a in AXES}
 
     def command(self, axis: str, volts: float) -> None:
-        if self._held_by is None:
+        if self._lent is None or axis != self._lent[0]:
             self._set_command(axis, volts)
 
     def _set_command(self, axis: str, volts: float) -> None:
@@ -207,7 +212,7 @@ class SerialMotorDriver(FaultLatch):
                               f"{'' if self._enabled else ', disabled'})")
         done: Future[Any] = Future()
         done.set_running_or_notify_cancel()
-        self._u = {a: 0.0 for a in AXES}
+        self._u[axis] = 0.0
         try:
             first = next(experiment)
         except BaseException as exc:  # noqa: BLE001 - handed to the future
@@ -223,7 +228,8 @@ class SerialMotorDriver(FaultLatch):
         An experiment still running is closed, its future given ``error`` (default: DriverFault
         saying it was stopped)."""
         lent, self._lent = self._lent, None
-        self._u = {a: 0.0 for a in AXES}
+        if lent is not None:
+            self._u[lent[0]] = 0.0
         self._held_by = None
         if lent is not None:
             _, experiment, done = lent
@@ -327,6 +333,7 @@ class SerialMotorDriver(FaultLatch):
             "url": self.spec.url,
             "state": self._state,
             "held_by": self._held_by,
+            "held_axis": self.held_axis,
             "board": None if h is None else f"{h.board} {h.board_id} (protocol {h.protocol})",
             "counts_per_rev": None if h is None else list(h.counts_per_rev),
             "gear_ratio": dict(self._gear),
