@@ -26,7 +26,7 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
-_CHUNK_WINDOWS = 8  # windows of one frame grid localized together (bounds the frames held)
+_CHUNK_WINDOWS = 8  # windows localized together (bounds the frames held)
 
 
 @dataclass(frozen=True, slots=True)
@@ -278,9 +278,23 @@ class Pipeline:
         return self.localizer.new_frames() if isinstance(self.localizer, SrpPhat) else None
 
     def first_sample_needed(self, start: int) -> int:
-        """The earliest sample the window starting at ``start`` (and its long window) reads."""
+        """The earliest sample the window starting at ``start`` (and its long window) reads
+        (their analysis starts on the frame grid, :meth:`analysis_start`)."""
         n_win, n_fine = self._lengths()
-        return max(0, min(start, start + n_win - n_fine))
+        return int(self.analysis_start(np.array([max(0, min(start, start + n_win - n_fine))]))[0])
+
+    def analysis_start(self, starts: IntArray) -> IntArray:
+        """Where the windows starting at ``starts`` are analysed: with ``srp_phat``, on the
+        grid of the STFT frame hop (``nfft // 2`` samples, 16 ms at 16 kHz), at or before the
+        start, so every window of a recording reads one set of frames, each transformed once
+        (windows every 0.1 s = 1600 samples on a 256-sample hop otherwise lie on four grids and
+        every frame is computed four times). A window's analysis then ends up to a hop minus a
+        sample earlier than its nominal end (never later: a live system has its samples when the
+        window ends); its time stamps stay the nominal ones. Other localizers: ``starts``."""
+        starts = np.asarray(starts, dtype=np.int64)
+        if not isinstance(self.localizer, SrpPhat):
+            return starts
+        return np.asarray(starts - starts % (self.localizer.settings.nfft // 2), dtype=np.int64)
 
     def _lengths(self) -> tuple[int, int]:
         """Samples in a short window and in a long one (0 when long ones are not localized)."""
@@ -295,11 +309,11 @@ class Pipeline:
         """Raw estimates of the windows starting at ``starts`` (absolute samples, increasing).
 
         ``audio`` (n_mics, n) holds samples ``offset..offset + n``, every window and its long
-        window inside; ``speech`` (n_windows,) is the speech detector's decision on each (long
-        windows are localized for speech windows only). ``frames`` (from :meth:`new_frames`),
-        when given, keeps STFT frames between calls (a stream's next windows reuse them);
-        without it a recording's windows are localized frame grid by frame grid with a store
-        of their own.
+        window inside from their :meth:`analysis_start`; ``speech`` (n_windows,) is the speech
+        detector's decision on each (long windows are localized for speech windows only).
+        ``frames`` (from :meth:`new_frames`), when given, keeps STFT frames between calls (a
+        stream's next windows reuse them); without it a recording's windows are localized in
+        chunks of time with a store of their own.
         """
         fs = self.fs_hz
         n_win, n_fine = self._lengths()
@@ -344,15 +358,15 @@ class Pipeline:
                     ) -> list[tuple[DirectionEstimate, float | None, FloatArray | None]]:
         """Every short window and the long windows of the speech windows, over shared frames.
 
-        The jobs (window start, length) are localized grouped by length; a recording (no
-        ``frames`` given) is done grid by grid (start modulo the frame hop: windows on one grid
-        share frames) in chunks of time, so the frames held stay few.
+        The jobs (window start, length) are localized grouped by length, each from its
+        :meth:`analysis_start` on the frame grid; a recording (no ``frames`` given) is done in
+        chunks of time with one store of frames, so the frames held stay few.
         """
         assert isinstance(self.localizer, SrpPhat)
         n_win, n_fine = self._lengths()
         fine_windows = np.flatnonzero(speech) if n_fine else np.zeros(0, dtype=np.int64)
         fine_lo = np.maximum(0, starts[fine_windows] + n_win - n_fine)
-        job_start = np.concatenate([starts, fine_lo])
+        job_start = self.analysis_start(np.concatenate([starts, fine_lo]))
         job_length = np.concatenate([np.full(starts.size, n_win),
                                      starts[fine_windows] + n_win - fine_lo])
         n_short = starts.size
@@ -363,16 +377,13 @@ class Pipeline:
             self._locate_jobs(frames, audio, offset, job_start, job_length, n_short,
                               np.arange(job_start.size), azimuth, elevation, confidence, maps)
         else:
-            grid = job_start % (self.localizer.settings.nfft // 2)
-            for g in np.unique(grid):
-                store = self.localizer.new_frames()  # one grid's frames, dropped after it
-                members = np.flatnonzero(grid == g)
-                members = members[np.argsort(job_start[members], kind="stable")]
-                for i in range(0, members.size, _CHUNK_WINDOWS):
-                    chunk = members[i : i + _CHUNK_WINDOWS]
-                    store.forget_before(int(job_start[chunk[0]]))  # earlier jobs are done
-                    self._locate_jobs(store, audio, offset, job_start, job_length, n_short,
-                                      chunk, azimuth, elevation, confidence, maps)
+            store = self.localizer.new_frames()  # every job starts on the one frame grid
+            members = np.argsort(job_start, kind="stable")
+            for i in range(0, members.size, _CHUNK_WINDOWS):
+                chunk = members[i : i + _CHUNK_WINDOWS]
+                store.forget_before(int(job_start[chunk[0]]))  # earlier jobs are done
+                self._locate_jobs(store, audio, offset, job_start, job_length, n_short,
+                                  chunk, azimuth, elevation, confidence, maps)
         fine: list[float | None] = [None] * n_short
         for j, k in enumerate(fine_windows.tolist()):
             fine[k] = float(azimuth[n_short + j])
