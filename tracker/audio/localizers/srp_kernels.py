@@ -239,12 +239,14 @@ def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, f
     x = spectra[:, :, first_bin : first_bin + n_band]
     if unit_magnitude:
         x = x / (np.abs(x) + _EPS)
-    re, im = np.ascontiguousarray(x.real), np.ascontiguousarray(x.imag)
+    # In the store's dtype (PRODUCT_DTYPE): the parts rounded once, the products made there.
+    re = np.ascontiguousarray(x.real, dtype=cross_re.dtype)
+    im = np.ascontiguousarray(x.imag, dtype=cross_re.dtype)
     rows = np.asarray(rows, dtype=np.int64)
     start = int(rows[0]) if rows.size else 0
     consecutive = bool(np.array_equal(rows, np.arange(start, start + rows.size)))
     target = slice(start, start + rows.size) if consecutive else rows  # the usual case: a run
-    one, two = np.empty(re.shape[1:]), np.empty(re.shape[1:])
+    one, two = np.empty(re.shape[1:], dtype=re.dtype), np.empty(re.shape[1:], dtype=re.dtype)
     for q, (i, j) in enumerate(zip(first.tolist(), second.tolist(), strict=True)):
         # (a + ib)(c - id), its parts written out (numpy's complex product may fuse them).
         np.multiply(re[i], re[j], out=one)
