@@ -252,7 +252,7 @@ class MapTracker:
         median = values[n // 2] if n % 2 else (values[n // 2 - 1] + values[n // 2]) / 2
         if s.confidence_power <= 0.0 or median <= 0.0:
             return 1.0
-        return float(np.clip(confidence / median, 0.0, 3.0) ** s.confidence_power)
+        return float(min(max(confidence / median, 0.0), 3.0) ** s.confidence_power)
 
     def _predict(self, dt: float, moving: bool) -> None:
         s, post = self.settings, self._posterior
