@@ -26,7 +26,7 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
-_CHUNK_WINDOWS = 8  # windows localized together (bounds the frames held)
+_CHUNK_WINDOWS = 16  # windows localized together (bounds the frames held: ~3 MB at 4 mics)
 ANALYSIS_GRID_FRAMES = 2  # analysis starts on a grid of 1 / this of the frame hop
 
 
@@ -132,8 +132,9 @@ class Pipeline:
     never (False); None (default): when the tracker reads them.
 
     With ``srp_phat`` every STFT frame is computed once and shared by all the windows holding
-    it (:class:`~tracker.audio.localizers.frames.StftFrames`), windows are localized in chunks
-    of 64 (:meth:`estimate_windows`); other localizers take one window at a time.
+    it (:class:`~tracker.audio.localizers.frames.StftFrames`; the windows start on two frame
+    grids, :meth:`analysis_start`), windows are localized in chunks of 16
+    (:meth:`estimate_windows`); other localizers take one window at a time.
     """
 
     array: MicArray
