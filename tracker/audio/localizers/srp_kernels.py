@@ -102,8 +102,8 @@ def _frame_weights(power_tiny: FloatArray, rise: FloatArray | None, floor: Float
     return above
 
 
-def _accumulate(weights: list[FloatArray], cross_re: FloatArray, cross_im: FloatArray,
-                rows: IntArray) -> list[tuple[FloatArray, FloatArray]]:
+def _accumulate(weights: list[FloatArray], cross_re: Float32Array, cross_im: Float32Array,
+                rows: IntArray) -> list[tuple[Float32Array, Float32Array]]:
     """``sum_t w[k, t, b] * cross[:, rows[k, t], b]`` in time order for each ``w`` of
     ``weights`` (n_windows, n_frames, n_band) (the frames gathered once for all of them); each
     sum's real and imaginary parts of shape (n_pairs, n_windows, n_band)."""
@@ -130,7 +130,7 @@ def _accumulate(weights: list[FloatArray], cross_re: FloatArray, cross_im: Float
     return sums
 
 
-def _phat(acc_re: FloatArray, acc_im: FloatArray, weights: FloatArray, phat_beta: float
+def _phat(acc_re: Float32Array, acc_im: Float32Array, weights: FloatArray, phat_beta: float
           ) -> ComplexArray:
     """``C / (|C| + eps) ** beta * weights[b]`` of accumulated cross-spectra (n_pairs,
     n_windows, n_band), returned as (n_windows, n_pairs, n_band) (dividing a complex number
@@ -145,7 +145,7 @@ def _phat(acc_re: FloatArray, acc_im: FloatArray, weights: FloatArray, phat_beta
 
 
 def weighted_cross_spectra(
-    cross_re: FloatArray, cross_im: FloatArray, power: FloatArray, rising: FloatArray,
+    cross_re: Float32Array, cross_im: Float32Array, power: FloatArray, rising: FloatArray,
     rows: IntArray, first_bin: int, edges: IntArray, interp_index: IntArray,
     centres: FloatArray, noise_scale: float, quantile: float, snr_exponent: float, cap: float,
     onset: bool, onset_power: float, phat_beta: float, confidence: bool,
@@ -227,8 +227,8 @@ def weighted_cross_spectra(
 
 
 def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, first: IntArray,
-                        second: IntArray, unit_magnitude: bool, cross_re: FloatArray,
-                        cross_im: FloatArray) -> None:
+                        second: IntArray, unit_magnitude: bool, cross_re: Float32Array,
+                        cross_im: Float32Array) -> None:
     """Write pair products ``X_i X_j*`` of new STFT frames into a frame store's rows.
 
     ``spectra`` (n_mics, n_new, n_freq) are the new frames; frame ``k``'s products at the bins
@@ -257,7 +257,8 @@ def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, f
         cross_im[q, target] = np.subtract(one, two, out=one)
 
 
-def gcc_at_lags(cross: ComplexArray, cosines: FloatArray, minus_sines: FloatArray) -> FloatArray:
+def gcc_at_lags(cross: ComplexArray, cosines: Float32Array, minus_sines: Float32Array
+                ) -> FloatArray:
     """Upsampled GCCs at a set of lags, from cross-spectra at the band's bins.
 
     ``g[k, p, l] = sum_b Re(C[k, p, b] exp(i theta[b, l])) / (sum_b |C[k, p, b]| + eps)``
