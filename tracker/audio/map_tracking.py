@@ -128,7 +128,10 @@ class _Seat:
         self.azimuth_rad = self._median()
 
     def _median(self) -> float:
-        median = float(np.median(self.positions_rad))
+        # np.median's value (the middle one, or the mean of the two middle ones), without its
+        # overhead on a short list.
+        ordered, n = sorted(self.positions_rad), len(self.positions_rad)
+        median = ordered[n // 2] if n % 2 else (ordered[n // 2 - 1] + ordered[n // 2]) / 2
         return _wrap(median) if self.circular else median
 
     def add(self, t_s: float, azimuth_rad: float) -> None:
@@ -180,6 +183,7 @@ class MapTracker:
     _confidences: list[tuple[float, float]] = field(default_factory=list)  # speech windows'
     _sorted_confidences: list[float] = field(default_factory=list)  # the same, sorted
     _votes: WindowVotes = field(init=False)  # speech windows' map peaks
+    _birth_cache: tuple[tuple[float, ...], FloatArray] | None = None  # seats -> birth prior
 
     def __post_init__(self) -> None:
         az = np.asarray(self.azimuth_rad, dtype=float)
@@ -248,7 +252,7 @@ class MapTracker:
         median = values[n // 2] if n % 2 else (values[n // 2 - 1] + values[n // 2]) / 2
         if s.confidence_power <= 0.0 or median <= 0.0:
             return 1.0
-        return float(np.clip(confidence / median, 0.0, 3.0) ** s.confidence_power)
+        return float(min(max(confidence / median, 0.0), 3.0) ** s.confidence_power)
 
     def _predict(self, dt: float, moving: bool) -> None:
         s, post = self.settings, self._posterior
@@ -308,9 +312,14 @@ class MapTracker:
                  or abs(self._offset(seat.azimuth_rad, current)) > s.gate_rad]
         if not seats or s.memory_share <= 0.0:
             return uniform
+        key = tuple(seats)
+        if self._birth_cache is not None and self._birth_cache[0] == key:
+            return self._birth_cache[1]  # the seats have not moved since the last window
         bumps = sum(np.exp(-0.5 * (self._offset(az, a) / s.memory_std_rad) ** 2) for a in seats)
         bumps = np.asarray(bumps) / np.sum(bumps)
-        return np.asarray((1.0 - s.memory_share) * uniform + s.memory_share * bumps)
+        prior = np.asarray((1.0 - s.memory_share) * uniform + s.memory_share * bumps)
+        self._birth_cache = (key, prior)
+        return prior
 
     def marginal(self) -> FloatArray:
         """Posterior probability of each azimuth cell (rates summed); shape (n_map,)."""
@@ -479,7 +488,8 @@ class MapTracker:
 def _shift_plan(cells: tuple[float, ...], n: int, circular: bool
                 ) -> tuple[IntArray, IntArray, FloatArray, BoolArray, BoolArray]:
     """What :func:`_shift_rows` reads for a set of shifts (the same every step of a steady
-    hop): the left and right cells, the fraction between them, and where the edges hold."""
+    hop): the left and right cells (as indices into the flattened rows), the fraction between
+    them, and where the edges hold."""
     x = np.arange(n, dtype=float)[None, :] - np.asarray(cells, dtype=float)[:, None]
     if circular:
         x = x % n
@@ -490,6 +500,8 @@ def _shift_plan(cells: tuple[float, ...], n: int, circular: bool
     else:
         j = np.clip(np.floor(x).astype(np.int64), 0, max(0, n - 2))
         plan = (j, np.minimum(j + 1, n - 1), x - j, x <= 0.0, x >= n - 1)
+    row_start = n * np.arange(x.shape[0], dtype=np.int64)[:, None]
+    plan = (plan[0] + row_start, plan[1] + row_start, *plan[2:])
     for part in plan:
         part.flags.writeable = False  # shared by every call with these shifts
     return plan
@@ -502,8 +514,8 @@ def _shift_rows(rows: FloatArray, cells: FloatArray, circular: bool = False) -> 
     n = rows.shape[1]
     j, j_right, fraction, low, high = _shift_plan(tuple(np.asarray(cells, dtype=float).tolist()),
                                                   n, circular)
-    left = np.take_along_axis(rows, j, axis=1)
-    right = np.take_along_axis(rows, j_right, axis=1)
+    flat = np.ascontiguousarray(rows).ravel()
+    left, right = flat.take(j), flat.take(j_right)  # take_along_axis's values, cheaper
     out = (right - left) * fraction + left
     if circular:
         return np.asarray(out)

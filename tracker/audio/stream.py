@@ -362,8 +362,10 @@ class StreamingLocator:
         if self._stft is not None:
             self._stft.forget_before(self.pipeline.first_sample_needed(start))
         self._speech.forget_before(start - self._vad_history)
-        # The audio of the next window and of its long window (the head's motion over them).
-        keep = max(0, start + self._n_win - max(self._n_fine, self._n_win))
+        # The audio of the next window and of its long window (the head's motion over them),
+        # from where their analysis starts (Pipeline.analysis_start: up to 127 samples earlier).
+        keep = min(max(0, start + self._n_win - max(self._n_fine, self._n_win)),
+                   self.pipeline.first_sample_needed(start))
         if keep > self._buf_start:
             self._buf = self._buf[:, keep - self._buf_start :].copy()
             self._buf_start = keep

@@ -90,8 +90,13 @@ class WindowVotes:
     def add(self, t_s: float, azimuth_rad: float) -> None:
         """A confident speech window's direction (time order)."""
         keep_s = max(10.0, self.window_s)
-        self._entries = [e for e in self._entries if t_s - e[0] <= keep_s]
-        self._entries.append((t_s, _wrap(azimuth_rad)))
+        entries = self._entries
+        old = 0  # the entries are in time order: the ones to drop are the first ones
+        while old < len(entries) and t_s - entries[old][0] > keep_s:
+            old += 1
+        if old:
+            del entries[:old]
+        entries.append((t_s, _wrap(azimuth_rad)))
 
     def near(self, azimuth_rad: float, since_s: float) -> int:
         """Windows since ``since_s`` within the gate of ``azimuth_rad``."""

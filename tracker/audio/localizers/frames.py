@@ -17,7 +17,7 @@ import bisect
 import numpy as np
 from numpy.typing import NDArray
 
-from tracker.audio.localizers.srp_kernels import store_pair_products
+from tracker.audio.localizers.srp_kernels import PRODUCT_DTYPE, Float32Array, store_pair_products
 from tracker.errors import DataError
 
 FloatArray = NDArray[np.float64]
@@ -76,8 +76,8 @@ class StftFrames:
         self.rising: FloatArray = np.zeros((0, n_band))
         # Pair-major (n_pairs, n_rows, n_band): new frames are written, and windows' frames
         # gathered, a pair's contiguous band at a time.
-        self.cross_re: FloatArray = np.zeros((n_pairs, 0, n_band))
-        self.cross_im: FloatArray = np.zeros((n_pairs, 0, n_band))
+        self.cross_re: Float32Array = np.zeros((n_pairs, 0, n_band), dtype=PRODUCT_DTYPE)
+        self.cross_im: Float32Array = np.zeros((n_pairs, 0, n_band), dtype=PRODUCT_DTYPE)
 
     def _allocate(self, capacity: int) -> None:
         """Grow the row arrays to ``capacity`` rows (the new rows are free)."""
@@ -90,8 +90,8 @@ class StftFrames:
 
         self.power = grown(self.power)
         self.rising = grown(self.rising, np.nan)
-        def grown_pairs(old: FloatArray) -> FloatArray:
-            new = np.zeros((old.shape[0], capacity, old.shape[2]))
+        def grown_pairs(old: Float32Array) -> Float32Array:
+            new = np.zeros((old.shape[0], capacity, old.shape[2]), dtype=PRODUCT_DTYPE)
             new[:, :used] = old
             return new
 

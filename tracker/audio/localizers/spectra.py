@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.audio.array import MicArray, unit_vector
-from tracker.audio.localizers.srp_kernels import gcc_at_lags, table_response
+from tracker.audio.localizers.srp_kernels import PRODUCT_DTYPE, gcc_at_lags, table_response
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -348,8 +348,8 @@ class GccSteering:
         n_lags = settings.nfft * settings.upsample
         lags = np.arange(-self.limit, self.limit + 1)
         phase = 2.0 * np.pi * np.outer(band_bins, lags) / n_lags  # (n_band, n_table)
-        self._cosines = np.ascontiguousarray(np.cos(phase))
-        self._minus_sines = np.ascontiguousarray(-np.sin(phase))
+        self._cosines = np.ascontiguousarray(np.cos(phase), dtype=PRODUCT_DTYPE)
+        self._minus_sines = np.ascontiguousarray(-np.sin(phase), dtype=PRODUCT_DTYPE)
 
     def table(self, cross_band: ComplexArray) -> GccTable:
         """GCC tables of cross-spectra at the band's bins, shape (n_windows, n_pairs, n_band)."""

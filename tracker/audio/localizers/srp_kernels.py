@@ -24,6 +24,12 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 IntArray = NDArray[np.int64]
+Float32Array = NDArray[np.float32]
+
+# The frames' pair products, the windows' sums of them and the GCC tables are float32: their
+# relative rounding (1e-7) is far below anything that moves a 0.25° peak, and the gathers, sums
+# and the GCC matrix product move and multiply half the bytes.
+PRODUCT_DTYPE = np.float32
 
 _TINY = 1e-30
 _EPS = 1e-12
@@ -78,36 +84,42 @@ def _noise_floor(power: FloatArray, edges: IntArray, interp_index: IntArray, cen
     return np.asarray(value / scale)
 
 
-def _frame_weights(power: FloatArray, rising: FloatArray, floor: FloatArray, onset: bool,
-                   onset_power: float) -> FloatArray:
+def _frame_weights(power_tiny: FloatArray, rise: FloatArray | None, floor: FloatArray
+                   ) -> FloatArray:
     """Each frame's weights at the band's bins: ``rising ** onset_power * clip(1 - floor / P,
-    0, 1)`` (:func:`~tracker.audio.localizers.spectra.onset_weights`; 1 without ``onset``).
+    0, 1)`` (:func:`~tracker.audio.localizers.spectra.onset_weights`; 1 without onsets).
 
-    ``power``, ``rising`` (n_windows, n_frames, n_band); ``floor`` (n_windows, n_band).
+    ``power_tiny`` is ``P + 1e-30`` and ``rise`` ``rising ** onset_power`` (None: no onset
+    weighting), each (n_windows, n_frames, n_band); ``floor`` (n_windows, n_band). (Where
+    ``rising`` is 0 the product is 0: the powers are finite.)
     """
-    if not onset:
-        return np.ones_like(power)
-    rise = rising * rising if onset_power == 2.0 else rising**onset_power
-    above = np.clip(1.0 - floor[:, None, :] / (power + _TINY), 0.0, 1.0)
-    return np.asarray(np.where(rising == 0.0, 0.0, rise * above))
+    if rise is None:
+        return np.ones_like(power_tiny)
+    above = floor[:, None, :] / power_tiny
+    np.subtract(1.0, above, out=above)
+    np.clip(above, 0.0, 1.0, out=above)
+    above *= rise
+    return above
 
 
-def _accumulate(weights: list[FloatArray], cross_re: FloatArray, cross_im: FloatArray,
-                rows: IntArray) -> list[tuple[FloatArray, FloatArray]]:
+def _accumulate(weights: list[FloatArray], cross_re: Float32Array, cross_im: Float32Array,
+                rows: IntArray) -> list[tuple[Float32Array, Float32Array]]:
     """``sum_t w[k, t, b] * cross[:, rows[k, t], b]`` in time order for each ``w`` of
     ``weights`` (n_windows, n_frames, n_band) (the frames gathered once for all of them); each
     sum's real and imaginary parts of shape (n_pairs, n_windows, n_band)."""
     n_windows, n_frames = rows.shape
     n_pairs, _, n_band = cross_re.shape
-    sums = [(np.empty((n_pairs, n_windows, n_band)), np.empty((n_pairs, n_windows, n_band)))
-            for _ in weights]
+    dtype = cross_re.dtype
+    weights = [np.asarray(w, dtype=dtype) for w in weights]
+    sums = [(np.empty((n_pairs, n_windows, n_band), dtype=dtype),
+             np.empty((n_pairs, n_windows, n_band), dtype=dtype)) for _ in weights]
     step = max(1, _BATCH_VALUES // (n_frames * n_band * n_pairs))
-    gathered_buffer = np.empty((n_pairs, min(step, n_windows), n_frames, n_band))
+    gathered_buffer = np.empty((n_pairs, min(step, n_windows), n_frames, n_band), dtype=dtype)
     for lo in range(0, n_windows, step):
         r = rows[lo : lo + step]
         # Reused block after block (fresh multi-MB temporaries cost page faults).
         gathered = (gathered_buffer if r.shape[0] == gathered_buffer.shape[1]
-                    else np.empty((n_pairs, *r.shape, n_band)))
+                    else np.empty((n_pairs, *r.shape, n_band), dtype=dtype))
         for part, source in enumerate((cross_re, cross_im)):
             np.take(source, r, axis=1, out=gathered)  # (pairs, windows, frames, band)
             for w, acc in zip(weights, sums, strict=True):
@@ -118,7 +130,7 @@ def _accumulate(weights: list[FloatArray], cross_re: FloatArray, cross_im: Float
     return sums
 
 
-def _phat(acc_re: FloatArray, acc_im: FloatArray, weights: FloatArray, phat_beta: float
+def _phat(acc_re: Float32Array, acc_im: Float32Array, weights: FloatArray, phat_beta: float
           ) -> ComplexArray:
     """``C / (|C| + eps) ** beta * weights[b]`` of accumulated cross-spectra (n_pairs,
     n_windows, n_band), returned as (n_windows, n_pairs, n_band) (dividing a complex number
@@ -133,7 +145,7 @@ def _phat(acc_re: FloatArray, acc_im: FloatArray, weights: FloatArray, phat_beta
 
 
 def weighted_cross_spectra(
-    cross_re: FloatArray, cross_im: FloatArray, power: FloatArray, rising: FloatArray,
+    cross_re: Float32Array, cross_im: Float32Array, power: FloatArray, rising: FloatArray,
     rows: IntArray, first_bin: int, edges: IntArray, interp_index: IntArray,
     centres: FloatArray, noise_scale: float, quantile: float, snr_exponent: float, cap: float,
     onset: bool, onset_power: float, phat_beta: float, confidence: bool,
@@ -189,9 +201,11 @@ def weighted_cross_spectra(
     # The window's first frame is its own previous one (as in onset_weights).
     rise[:, 0] = np.clip(1.0 - p[:, 0] / (p[:, 0] + _TINY), 0.0, 1.0)
     share = np.clip(1.0 - low / (mean + _TINY), 0.0, 1.0)
+    p_tiny = p + _TINY
+    rise_pow = None if not onset else (rise * rise if onset_power == 2.0 else rise**onset_power)
     zeros = np.zeros((n_windows, n_pairs, n_band), dtype=np.complex128)
     if not use_ratio:
-        [(acc_re, acc_im)] = _accumulate([_frame_weights(p, rise, low, onset, onset_power)],
+        [(acc_re, acc_im)] = _accumulate([_frame_weights(p_tiny, rise_pow, low)],
                                          cross_re, cross_im, rows)
         return _phat(acc_re, acc_im, share, phat_beta), zeros
     noise = _noise_floor(frames_power, edges, interp_index, centres, noise_scale, quantile, bins)
@@ -202,9 +216,9 @@ def weighted_cross_spectra(
         ratio_weight = ratio * ratio
     else:
         ratio_weight = ratio**snr_exponent
-    weights = [_frame_weights(p, rise, noise, onset, onset_power)]
+    weights = [_frame_weights(p_tiny, rise_pow, noise)]
     if second:
-        weights.append(_frame_weights(p, rise, low, onset, onset_power))
+        weights.append(_frame_weights(p_tiny, rise_pow, low))
     sums = _accumulate(weights, cross_re, cross_im, rows)
     direction = _phat(*sums[0], ratio_weight, phat_beta)
     if not second:
@@ -213,8 +227,8 @@ def weighted_cross_spectra(
 
 
 def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, first: IntArray,
-                        second: IntArray, unit_magnitude: bool, cross_re: FloatArray,
-                        cross_im: FloatArray) -> None:
+                        second: IntArray, unit_magnitude: bool, cross_re: Float32Array,
+                        cross_im: Float32Array) -> None:
     """Write pair products ``X_i X_j*`` of new STFT frames into a frame store's rows.
 
     ``spectra`` (n_mics, n_new, n_freq) are the new frames; frame ``k``'s products at the bins
@@ -225,12 +239,14 @@ def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, f
     x = spectra[:, :, first_bin : first_bin + n_band]
     if unit_magnitude:
         x = x / (np.abs(x) + _EPS)
-    re, im = np.ascontiguousarray(x.real), np.ascontiguousarray(x.imag)
+    # In the store's dtype (PRODUCT_DTYPE): the parts rounded once, the products made there.
+    re = np.ascontiguousarray(x.real, dtype=cross_re.dtype)
+    im = np.ascontiguousarray(x.imag, dtype=cross_re.dtype)
     rows = np.asarray(rows, dtype=np.int64)
     start = int(rows[0]) if rows.size else 0
     consecutive = bool(np.array_equal(rows, np.arange(start, start + rows.size)))
     target = slice(start, start + rows.size) if consecutive else rows  # the usual case: a run
-    one, two = np.empty(re.shape[1:]), np.empty(re.shape[1:])
+    one, two = np.empty(re.shape[1:], dtype=re.dtype), np.empty(re.shape[1:], dtype=re.dtype)
     for q, (i, j) in enumerate(zip(first.tolist(), second.tolist(), strict=True)):
         # (a + ib)(c - id), its parts written out (numpy's complex product may fuse them).
         np.multiply(re[i], re[j], out=one)
@@ -241,20 +257,24 @@ def store_pair_products(spectra: ComplexArray, first_bin: int, rows: IntArray, f
         cross_im[q, target] = np.subtract(one, two, out=one)
 
 
-def gcc_at_lags(cross: ComplexArray, cosines: FloatArray, minus_sines: FloatArray) -> FloatArray:
+def gcc_at_lags(cross: ComplexArray, cosines: Float32Array, minus_sines: Float32Array
+                ) -> FloatArray:
     """Upsampled GCCs at a set of lags, from cross-spectra at the band's bins.
 
     ``g[k, p, l] = sum_b Re(C[k, p, b] exp(i theta[b, l])) / (sum_b |C[k, p, b]| + eps)``
     (``cosines``, ``minus_sines``: ``cos theta``, ``-sin theta``, shape (n_band, n_lags)).
     One matrix product per window (numpy's stacked ``matmul``), so a window's table does not
-    depend on the windows beside it.
+    depend on the windows beside it; in the dtype of ``cosines`` (float32 from
+    :class:`~tracker.audio.localizers.spectra.GccSteering`).
 
     Returns
     -------
     ndarray, shape (n_windows, n_pairs, n_lags)
     """
-    parts = np.concatenate([cross.real, cross.imag], axis=-1)  # (n_windows, n_pairs, 2 n_band)
-    steer = np.concatenate([cosines, minus_sines], axis=0)  # (2 n_band, n_lags)
+    # (n_windows, n_pairs, 2 n_band) @ (2 n_band, n_lags), in the steering's dtype (float32
+    # from GccSteering: PRODUCT_DTYPE); the normalisation in float64.
+    parts = np.concatenate([cross.real, cross.imag], axis=-1).astype(cosines.dtype)
+    steer = np.concatenate([cosines, minus_sines], axis=0)
     total = np.ascontiguousarray(np.hypot(cross.real, cross.imag)).sum(axis=-1, keepdims=True)
     return np.asarray(np.matmul(parts, steer) * (1.0 / (total + _EPS)))
 
