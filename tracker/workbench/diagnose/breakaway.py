@@ -48,7 +48,8 @@ class BreakAway:
 
     ``excess_nm`` (shape (m,)) is the observed break-away torque minus the model's;
     ``rate_nm_s`` the torque rate K·s·u̇ at each; ``static_excess_nm`` (a) and ``delay_s`` (d)
-    with standard errors.
+    with standard errors; ``coulomb_nm`` the model's Coulomb torque (positive direction) the
+    excess is measured over.
     """
 
     count: int
@@ -58,6 +59,7 @@ class BreakAway:
     static_excess_se: float
     delay_s: float
     delay_se: float
+    coulomb_nm: float = 0.0
 
     @property
     def static_t(self) -> float:
@@ -149,7 +151,9 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
         se = np.array([math.inf, math.inf])
-    return BreakAway(y.size, y, r, float(coef[0]), float(se[0]), float(coef[1]), float(se[1]))
+    return BreakAway(
+        y.size, y, r, float(coef[0]), float(se[0]), float(coef[1]), float(se[1]), float(fc_pos)
+    )
 
 
 def _break_torque_nm(
