@@ -437,7 +437,7 @@ def summarize_diagnosis(recs: list[dict[str, Any]]) -> str:
         w(
             "  ... by whether the log resolves the effect (bench/detectability.py: torque signature "
             f"≥ {_min_z():g} standard errors of the log's own noise; backlash wider than the "
-            "reading's spread)"
+            "reading's spread; stiction's torque held above Coulomb at rest)"
         )
         for e in EFFECTS:
             for ok in (True, False):

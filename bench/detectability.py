@@ -18,8 +18,17 @@ only (nothing of the workbench under test):
 * backlash: the width against the spread of the encoder's reading (a count either way, or
   ±3σ of the angle noise): a dead band narrower than the reading's flicker at reversals cannot
   be told from it.
-* the others (stiction, delay, saturation, compliance) act through the dynamics, not as a
-  torque of the state: not rated (``None``).
+* stiction: the torque the axis holds *above Coulomb while at rest*, just before each start
+  from rest (the median command over the last moments before the encoder moves, times the
+  gain, less the true Coulomb torque of that direction), capped at the true excess ``Fs − Fc``
+  (the part static friction can account for) and counted only where positive, in units of the
+  log's own torque noise ``σ`` (as for the torque effects: the true structure's residual at
+  the narrowest band): ``z = √Σ (held_i/σ)²``. A start after a command step holds nothing
+  above Coulomb (the axis breaks away within a sample whatever ``Fs``): only starts where
+  the command crept up to the break-away say what it is. The Stribeck velocity against the
+  speed resolution (a count per rest window) is reported beside it (``stribeck_resolution``).
+* the others (delay, saturation, compliance) act through the dynamics, not as a torque of
+  the state: not rated (``None``).
 """
 
 from __future__ import annotations
@@ -40,6 +49,10 @@ CUTOFF_HZ = (5.0, 10.0, 25.0)  # the signals' low-passes tried (each at most a t
 MOVING_COUNTS_PER_S = 5.0  # samples slower than this many counts per second are left out (stick)
 FLICKER_MIN_COUNTS = 2.0
 FLICKER_SIGMAS = 6.0
+REST_S = 0.05  # a start from rest: the reading held this long, then moved
+HELD_WINDOW_S = 0.02  # the held command: median over this window ...
+HELD_SKIP_S = 0.004  # ... ending this long before the reading moved (the break within a sample)
+REST_SIGMAS = 3.0  # with angle noise: at rest while within this many σ of the rest's first reading
 
 
 def _torque(effect: str, p: Mapping[str, float], theta: FloatArray, omega: FloatArray) -> FloatArray:
@@ -53,6 +66,10 @@ def _torque(effect: str, p: Mapping[str, float], theta: FloatArray, omega: Float
         return np.where(neg, (p["viscous_asymmetry.negative"] - p["viscous.b"]) * omega, 0.0)
     if effect == "gravity":
         return np.asarray(p["gravity.torque"] * np.sin(theta + p["gravity.phase"]), dtype=float)
+    if effect == "stiction":
+        extra = p["stiction.static_torque"] - p["coulomb.torque"]
+        decay = np.exp(-((omega / p["stiction.velocity"]) ** 2))
+        return np.asarray(extra * decay * np.sign(omega), dtype=float)
     if effect == "ripple":
         n = p["ripple.cycles_per_rev"]
         return np.asarray(p["ripple.amplitude"] * np.sin(n * theta + p["ripple.phase"]), dtype=float)
@@ -89,6 +106,34 @@ def _signals(
     return dt, lp(u), th, om, al
 
 
+def _angle_sigma_rad(theta: FloatArray, dt: float) -> float:
+    sos = signal.butter(4, min(max(CUTOFF_HZ), 0.1 / dt), fs=1.0 / dt, output="sos")
+    r = theta - signal.sosfiltfilt(sos, theta)
+    return 1.4826 * float(np.median(np.abs(r - np.median(r))))
+
+
+def starts_from_rest(theta: FloatArray, step_rad: float, dt: float) -> list[tuple[int, int, float]]:
+    """Starts from rest in a log: ``(first rest sample, first moved sample, direction)``.
+
+    At rest while the reading stays within half a count (or ``REST_SIGMAS`` σ of its noise) of
+    its first value for at least ``REST_S``.
+    """
+    tol = max(0.5 * step_rad, REST_SIGMAS * _angle_sigma_rad(theta, dt), 1e-12)
+    min_rest = max(2, int(round(REST_S / dt)))
+    out: list[tuple[int, int, float]] = []
+    start, anchor = 0, float(theta[0])
+    moved = np.abs(theta - anchor) > tol
+    while True:
+        hit = np.flatnonzero(moved[start:])
+        if hit.size == 0:
+            return out
+        k = start + int(hit[0])
+        if k - start >= min_rest:
+            out.append((start, k, math.copysign(1.0, float(theta[k]) - anchor)))
+        start, anchor = k, float(theta[k])
+        moved[k:] = np.abs(theta[k:] - anchor) > tol
+
+
 def reading_spread_rad(theta: FloatArray, step_rad: float, dt: float) -> float:
     """The spread of the encoder's reading about the true angle: 2 counts or ±3σ of its noise."""
     sos = signal.butter(4, min(max(CUTOFF_HZ), 0.1 / dt), fs=1.0 / dt, output="sos")
@@ -116,12 +161,79 @@ def detectability(
         dt = float(np.median(np.diff(t)))
         ratio = p["backlash.width"] / reading_spread_rad(theta, step, dt)
         return {"effect": effect, "measure": "width/spread", "value": ratio, "detectable": ratio >= 1.0}
+    if effect == "stiction":
+        return _stiction(p, truth, t, u, theta)
     if effect not in TORQUE_EFFECTS:
         return {"effect": effect, "measure": None, "value": None, "detectable": None}
     # An analysis may choose its bandwidth: the best of a few (a ripple needs a wide one, a
     # slow signature under quantization noise a narrow one).
     z = max(_z(effect, p, truth, t, u, theta, fc) for fc in CUTOFF_HZ)
     return {"effect": effect, "measure": "z", "value": z, "detectable": z >= MIN_Z}
+
+
+def _stiction(
+    p: Mapping[str, float], truth: Mapping[str, Any], t: FloatArray, u: FloatArray, theta: FloatArray
+) -> dict[str, Any]:
+    """The torque held above Coulomb at rest, against the disturbance and Coulomb's uncertainty."""
+    dt = float(np.median(np.diff(t)))
+    step = p.get("quantization.step", 0.0)
+    k = float(truth["gain_nm_per_v"])
+    excess = max(p["stiction.static_torque"] - p["coulomb.torque"], 0.0)
+    fc_neg = p.get("coulomb_asymmetry.negative", p["coulomb.torque"])
+    win, skip = max(1, int(round(HELD_WINDOW_S / dt))), max(1, int(round(HELD_SKIP_S / dt)))
+    torque = np.convolve(k * u, np.ones(win) / win, mode="full")[: u.size]  # mean of the last win
+    over = np.abs(torque) - np.where(torque >= 0, p["coulomb.torque"], fc_neg)
+    rests = starts_from_rest(theta, step, dt)
+    held = []
+    for first, first_moved, _ in rests:
+        lo, hi = first + win, first_moved - skip
+        if hi > lo:
+            held.append(float(np.max(over[lo:hi])))
+    h = np.clip(np.array(held, dtype=float), 0.0, excess)
+    sigma_d = float(truth.get("noise", {}).get("disturbance_rms_nm", 0.0))
+    se_fc = _coulomb_se(p, truth, t, u, theta, min(CUTOFF_HZ))
+    sigma = math.hypot(sigma_d, se_fc)
+    if sigma > 0:
+        z = float(np.sqrt(np.sum((h / sigma) ** 2)))
+    else:
+        z = math.inf if h.any() else 0.0
+    speed_res = max(step, 1e-12) / REST_S
+    return {
+        "effect": "stiction",
+        "measure": "held/noise",
+        "value": z,
+        "detectable": z >= MIN_Z,
+        "rests": len(held),
+        "holding": int(np.count_nonzero(h > 0.5 * excess)),
+        "excess_over_noise": excess / sigma if sigma > 0 else math.inf,
+        "stribeck_resolution": p["stiction.velocity"] / speed_res,
+    }
+
+
+def _coulomb_se(
+    p: Mapping[str, float],
+    truth: Mapping[str, Any],
+    t: FloatArray,
+    u: FloatArray,
+    theta: FloatArray,
+    cutoff_hz: float,
+) -> float:
+    """Standard error of the Coulomb torque a regression on the moving samples gets (true
+    structure, Stribeck known), under the log's coloured residual (effective samples)."""
+    step = p.get("quantization.step", 0.0)
+    dt, u_lp, th, om, al = _signals(t, u, theta, cutoff_hz)
+    moving = np.abs(om) > MOVING_COUNTS_PER_S * max(step, 1e-9)
+    edge = max(1, int(round(0.05 / dt)))
+    moving[:edge] = moving[-edge:] = False
+    if moving.sum() < 10:
+        return math.inf
+    y = float(truth["gain_nm_per_v"]) * u_lp[moving] - _torque("stiction", p, th[moving], om[moving])
+    x = np.column_stack([al[moving], om[moving], np.sign(om[moving])])
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    res = y - x @ coef
+    sigma2 = float(res @ res) / max(1, y.size - 3)
+    cov = np.linalg.pinv(x.T @ x) * sigma2 * y.size / max(effective_samples(res), 1.0)
+    return float(np.sqrt(max(cov[2, 2], 0.0)))
 
 
 def _z(
@@ -158,4 +270,4 @@ def _z(
     return float(np.sqrt(np.mean(sig**2)) / sigma * math.sqrt(effective_samples(noise)))
 
 
-__all__ = ["MIN_Z", "detectability", "effective_samples", "reading_spread_rad"]
+__all__ = ["MIN_Z", "detectability", "effective_samples", "reading_spread_rad", "starts_from_rest"]

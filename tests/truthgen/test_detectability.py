@@ -56,3 +56,40 @@ def test_detectability_imports_nothing_from_tracker() -> None:
     code = "import sys, bench.detectability; print(any(m.split('.')[0] == 'tracker' for m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == "False"
+
+
+def _rate_stiction(case_id: str, seed: int | None = None, excess_scale: float = 1.0) -> dict[str, object]:
+    import tests.truthgen.matrix as matrix
+
+    if seed is None:
+        log, truth = generate_case(case_id)
+    else:
+        with matrix.seeded(seed):
+            log, truth = generate_case(case_id)
+    truth = copy.deepcopy(truth)
+    p = truth["params"]
+    p["stiction.static_torque"] = p["coulomb.torque"] + excess_scale * (
+        p["stiction.static_torque"] - p["coulomb.torque"]
+    )
+    return detectability(truth, log.t, log.u, log.theta)
+
+
+def test_stiction_is_rated_by_the_torque_held_above_coulomb_at_rest() -> None:
+    """A closed-loop log whose command creeps up to the break-away at each start from rest:
+    the torque held above Coulomb is many standard errors of the disturbance and of Coulomb's
+    own uncertainty. The same log judged against a break-away at Coulomb holds nothing."""
+    r = _rate_stiction("stiction-001")
+    assert r["measure"] == "held/noise" and r["detectable"] is True
+    assert isinstance(r["value"], float) and r["value"] >= MIN_Z
+    assert isinstance(r["rests"], int) and r["rests"] >= 10
+    assert isinstance(r["holding"], int) and r["holding"] > 0
+    none = _rate_stiction("stiction-001", excess_scale=0.0)
+    assert none["value"] == 0.0 and none["detectable"] is False
+
+
+def test_stiction_under_open_loop_steps_that_never_hold_is_undetectable() -> None:
+    """Seed 5151's stiction-005: open-loop steps that either stay below Coulomb or jump past
+    the break-away at once. No rest ever holds a torque above Coulomb, so the log cannot tell
+    the break-away from Coulomb: "no verdict" is the right answer there."""
+    r = _rate_stiction("stiction-005", seed=5151)
+    assert r["holding"] == 0 and r["detectable"] is False

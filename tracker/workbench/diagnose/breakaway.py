@@ -1,12 +1,21 @@
-"""Break-away analysis: the command at which a stuck axis starts to move, against the model.
+"""Break-away analysis: the torque at which a stuck axis starts to move, against the model.
 
 At rest the axis holds until the applied torque exceeds the break-away torque (Karnopp). A
 model with Coulomb torque Fc predicts motion as soon as ``s·(K·u − τ_other) > Fc_s``. Two
-effects raise the observed break-away command: static friction above Coulomb (stiction: a
-constant excess) and a transport delay (the command has risen further by the time the late
+effects raise the observed break-away: static friction above Coulomb (stiction: a constant
+excess) and a transport delay (the logged command has risen further by the time the late
 torque arrives: an excess ``K·u̇·d`` that grows with the command's rate). Regressing the
 excess on [1, K·s·u̇] over all break-away events separates them — slow starts show stiction,
 fast ones delay — which one measurement of reversals alone cannot.
+
+The excess of each start is measured directly, as a level: the torque the command applied at
+the moment the axis broke away, less the model's Coulomb torque (and its other static
+torques). The moment of the break is the encoder's first change less the time the axis needs
+to cover that half count after breaking (taken from the model simulated from rest with the
+measured command): without it, a slowly rising command on a coarse encoder looks like a delay
+and like stiction. (Multiplying a lag by the command's rate instead, as before, assumes a
+command that rose at one rate through the lag; in closed loop it seldom does, and a held
+command above Coulomb gave no excess at all.)
 """
 
 from __future__ import annotations
@@ -26,6 +35,11 @@ MIN_REST_S = 0.05
 PRE_S = (0.008, 0.002)  # command averaged over this window before the first count change
 MIN_SHARE = 0.5  # the command before a start must reach this share of the Coulomb torque
 MAX_JUMP_V = 0.3  # ... and must not have jumped by more than this over the last ~30 ms
+# The command may change by at most this share of Coulomb while the axis covers the half count
+# after breaking away (or the level read depends on the travel time, which the model only guesses).
+MAX_TRAVEL_SWING = 1.0
+TRAVEL_ITERATIONS = 2  # the travel after the break measured again with the break-away found
+TRAVEL_STRIBECK_RAD_S = 0.05  # Stribeck velocity of that second model (the catalogue's default)
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,7 +48,8 @@ class BreakAway:
 
     ``excess_nm`` (shape (m,)) is the observed break-away torque minus the model's;
     ``rate_nm_s`` the torque rate K·s·u̇ at each; ``static_excess_nm`` (a) and ``delay_s`` (d)
-    with standard errors.
+    with standard errors; ``coulomb_nm`` the model's Coulomb torque (positive direction) the
+    excess is measured over.
     """
 
     count: int
@@ -44,6 +59,7 @@ class BreakAway:
     static_excess_se: float
     delay_s: float
     delay_se: float
+    coulomb_nm: float = 0.0
 
     @property
     def static_t(self) -> float:
@@ -117,10 +133,11 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
         jump = abs(u_b - early)
         if s * k_gain * u_b < MIN_SHARE * min(fc_pos, fc_neg) or jump > MAX_JUMP_V or s * du <= 0:
             continue
-        lag = _model_lag_samples(meas, model, int(e), int(min(gap, e)), s, 0.5 * count)
-        if not math.isfinite(lag):
+        fc_s = fc_pos if s > 0 else fc_neg
+        held = _break_torque_nm(meas, model, int(e), int(min(gap, e)), s, 0.5 * count)
+        if not math.isfinite(held):
             continue
-        ex.append(k_gain * s * du * lag * dt)
+        ex.append(held - fc_s)
         rate.append(k_gain * s * du)
     if len(ex) < 4:
         return None
@@ -134,39 +151,67 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
         se = np.array([math.inf, math.inf])
-    return BreakAway(y.size, y, r, float(coef[0]), float(se[0]), float(coef[1]), float(se[1]))
+    return BreakAway(
+        y.size, y, r, float(coef[0]), float(se[0]), float(coef[1]), float(se[1]), float(fc_pos)
+    )
 
 
-def _model_lag_samples(
+def _break_torque_nm(
     meas: Measurement, model: AxisModel, first_moved: int, rest: int, direction: float, distance: float
 ) -> float:
-    """Samples by which the encoder's first change after a rest lags the model's.
+    """The torque ``s·(K·u − τ_other)`` the axis held when it broke away after a rest; nan if unknown.
 
     The model starts at rest ``rest`` samples before ``first_moved`` (at most 0.5 s) at the held
-    angle and is driven by the measured command; its first crossing of ``distance`` (half a count)
-    is compared with the encoder's (taken half a sample before ``first_moved``, the middle of the
-    sample period in which the count changed).
+    angle, driven by the measured command; the samples it needs from its last moment at rest to
+    its first crossing of ``distance`` (half a count) are the axis's travel time. The real break is
+    that long before the encoder's change (taken half a sample before ``first_moved``, the
+    middle of the period in which the count changed); the command applied then (the model's
+    delay, if it has one, accounted for) is the break-away torque. An axis breaking away above
+    Coulomb covers the half count sooner than the model, so the travel is measured again with
+    the model given that break-away (``TRAVEL_ITERATIONS``). A start whose command swept by more
+    than ``MAX_TRAVEL_SWING`` of Coulomb through the travel says nothing (nan): its level would
+    be the travel time's guess (a fast chirp on a coarse encoder).
     """
     from tracker.plant.simulate import initial_state, simulate
 
-    lead = min(rest, int(round(0.5 / meas.dt_s)))
+    dt = meas.dt_s
+    lead = min(rest, int(round(0.5 / dt)))
     k0 = first_moved - lead
-    k1 = min(meas.n, first_moved + int(round(0.2 / meas.dt_s)))
+    k1 = min(meas.n, first_moved + int(round(0.2 / dt)))
     rigid = model
     for effect in ("backlash", "compliance"):
         if rigid.has(effect):
             rigid = rigid.without_effect(effect)
-    run = simulate(
-        rigid,
-        meas.u_v[k0:k1],
-        meas.dt_s,
-        x0=initial_state(float(meas.theta_rad[first_moved - 1])),
-        quantize=False,
-    )
-    sim_k = _first_crossing(run.theta_rad, float(meas.theta_rad[first_moved - 1]), direction, distance)
-    if not math.isfinite(sim_k):
-        return math.inf
-    return (lead - 0.5) - sim_k
+    theta0 = float(meas.theta_rad[first_moved - 1])
+    other = float(_other_torque(model, np.array([theta0]))[0])
+    delay = model.params.get("delay.seconds", 0.0) / dt if model.has("delay") else 0.0
+    level = math.nan
+    for _ in range(TRAVEL_ITERATIONS):
+        run = simulate(rigid, meas.u_v[k0:k1], dt, x0=initial_state(theta0), quantize=False)
+        sim_k = _first_crossing(run.theta_rad, theta0, direction, distance)
+        if not math.isfinite(sim_k):
+            return level
+        # The model's last moment at rest before it crossed (it may stick and slip on the way).
+        held = np.flatnonzero(run.omega_rad_s[: int(math.ceil(sim_k)) + 1] == 0.0)
+        if held.size == 0:
+            return level  # the model never held: nothing says when it broke away
+        travel = sim_k - float(held[-1])
+        at = int(math.floor(k0 + (lead - 0.5) - travel - delay))
+        if at < 0 or at >= first_moved:
+            return level
+        level = direction * (model.gain_nm_per_v * float(meas.u_v[at]) - other)
+        swing = model.gain_nm_per_v * float(np.ptp(meas.u_v[at:first_moved]))
+        if swing > MAX_TRAVEL_SWING * float(model.params["coulomb.torque"]):
+            return math.nan  # the command swept through the travel: its level is the travel's guess
+        # An axis that breaks away at that level starts with the excess over Coulomb and covers
+        # the half count sooner than the model's: measure its travel again with it.
+        fc = float(model.params["coulomb.torque"])
+        if level <= fc:
+            return level
+        effects = rigid.effects if rigid.has("stiction") else (*rigid.effects, "stiction")
+        values = {"stiction.static_torque": level, "stiction.velocity": TRAVEL_STRIBECK_RAD_S}
+        rigid = AxisModel.create(rigid.gain_nm_per_v, {}, effects, {**rigid.params, **values})
+    return level
 
 
 __all__ = ["BreakAway", "analyse_breakaway"]

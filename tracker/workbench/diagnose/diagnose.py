@@ -231,7 +231,8 @@ def _candidate(r: Judged, ctx: EvidenceContext, significant: list[str]) -> Candi
         params=params,
         stderr={k: v for k, v in source.items() if k.split(".")[0] == r.effect},
         significant=r.significant,
-        evidence=describe(r.effect, r.screen, r.cmp, ctx, r.model.params),
+        evidence=describe(r.effect, r.screen, r.cmp, ctx, r.model.params)
+        + (f"; {r.established}" if r.established else ""),
         confused_with=ctx.confusions(r.effect, significant),
         experiment=experiment_for(r.effect),
         screen_gain=r.screen.gain_cv,

@@ -26,7 +26,7 @@ from tracker.workbench.diagnose.kstep import (
     held_out_search,
     refine,
 )
-from tracker.workbench.diagnose.screening import Screen
+from tracker.workbench.diagnose.screening import Screen, Structure, model_params
 from tracker.workbench.fit import generic
 from tracker.workbench.measurements.idim import encoder_timing_s
 
@@ -89,6 +89,7 @@ class Judged:
     screen_ok: bool
     stderr: dict[str, float] = field(default_factory=dict)
     passed: bool = False  # passed the gates of size and agreement (before the physics check)
+    established: str | None = None  # stiction: what the break-away from rest establishes alone
 
     def rank_key(self) -> tuple[bool, float]:
         """Significant first, then by the k-step gain: the simulation is the judge.
@@ -261,7 +262,33 @@ def judge_candidate(
     significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
     if effect == "delay" and significant:
         significant = _lags_while_sliding(judge, cand, score)
-    return Judged(effect, scr, cand, score, cmp, significant, screen_ok, passed=passed)
+    established = stiction_at_rest(ctx) if effect == "stiction" else None
+    if established is not None and negligible(effect, cand, ctx) is None:
+        screen_ok = passed = significant = True
+    return Judged(
+        effect, scr, cand, score, cmp, significant, screen_ok, passed=passed, established=established
+    )
+
+
+def stiction_at_rest(ctx: EvidenceContext) -> str | None:
+    """What the break-away from rest establishes about static friction by itself, or None.
+
+    The break-away analysis measures the excess over the base model's Coulomb torque; a missing
+    stiction biases that Coulomb (the model fitted to the whole run absorbs some break-away), so
+    the excess is taken over the Coulomb torque of the torque regression on the moving data
+    instead, and judged by the stiction effect's own rule
+    (:func:`tracker.plant.effects.stiction.established_at_rest`).
+    """
+    ba = ctx.breakaway
+    if ba is None or ba.count <= MIN_BREAKAWAY_COUNT or not ba.static_excess_se > 0:
+        return None
+    values, _ = model_params(ctx.model, Structure.of(ctx.model), ctx.base_reg)
+    sliding = float(values["coulomb.torque"])
+    excess = ba.static_excess_nm + ba.coulomb_nm - sliding
+    if excess / ba.static_excess_se < MIN_BREAKAWAY_T:
+        return None
+    lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
+    return stiction_effect.established_at_rest(sliding, excess, lower)
 
 
 def refine_leaders(
@@ -295,6 +322,7 @@ def refine_leaders(
             r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
             r.passed = _kstep_ok(r.effect, r.cmp)
             small = negligible(r.effect, refined, ctx) is not None
+            r.passed = r.passed or (r.established is not None and not small)
             r.significant = r.passed and _physical(r.effect, refined, ctx) and not small
             if r.effect == "compliance" and compliance_effect.unresolved(refined.params, se) is not None:
                 r.significant = False
@@ -543,5 +571,6 @@ __all__ = [
     "rank",
     "reconsider_backlash",
     "refine_leaders",
+    "stiction_at_rest",
     "with_values",
 ]

@@ -87,3 +87,32 @@ def test_a_noisy_reading_on_a_clean_log_is_no_dead_band(fresh_blind_set: Any) ->
     d = _diagnose(log, truth)
     assert d.verdict is None
     assert not d.candidate("backlash").significant
+
+
+def test_stiction_held_far_above_coulomb_at_rest_is_named_stiction() -> None:
+    """Regression: a 500 Hz PD + feed-forward log whose break-away is 63 % above Coulomb. The
+    30 ms prediction barely sees static friction there (the true model with it predicts no
+    better than without), and the break-away measured as a lag times the last rate found
+    nothing, so the verdict was none. Measured as the torque applied when the axis broke away,
+    over the Coulomb torque of sliding, it is established from rest."""
+    truth, d = _case("stiction-003")
+    assert truth["hidden"] == ["stiction"] and truth["controller"] == "pdff"
+    assert d.verdict == "stiction"
+    assert "measured from rest" in d.candidate("stiction").evidence
+
+
+def test_stiction_under_a_coarse_encoder_at_2khz_is_named_stiction() -> None:
+    """Regression (seed 4242, dev half): a 2 kHz PID log, 1000 counts per revolution, a one-sample
+    latency, break-away 118 % above Coulomb; the verdict was none (the short prediction did not
+    confirm it). The break-away from rest measures 121 ± 8 % over the Coulomb torque of sliding."""
+    import tests.truthgen.matrix as matrix
+
+    with matrix.seeded(4242):
+        log, truth = matrix.generate_case("stiction-005")
+    assert truth["hidden"] == ["stiction"] and truth["encoder_counts_per_rev"] == 1000
+    d = _diagnose(log, truth)
+    assert d.verdict == "stiction"
+    c = d.candidate("stiction")
+    excess = c.params["stiction.static_torque"] - truth["params"]["coulomb.torque"]
+    true_excess = truth["params"]["stiction.static_torque"] - truth["params"]["coulomb.torque"]
+    assert excess > 0.5 * true_excess
