@@ -123,6 +123,7 @@ class SerialMotorDriver(FaultLatch):
         self._held_by: str | None = None
         self._lent: tuple[str, Experiment, Future[Any]] | None = None  # take_over's axis, experiment
         self._lent_volts = 0.0  # the experiment's command for the next exchange
+        self._lent_t = 0.0  # the board time of the reading the experiment was last sent
         self.samples = 0  # sample exchanges the control loop made (tick)
         self.board_t_us = 0  # the latest reading's time stamp as the board sent it (µs, 32 bits)
         self._board_s = 0.0  # the board's clock unwrapped, continued across reconnects (s)
@@ -220,6 +221,7 @@ class SerialMotorDriver(FaultLatch):
             return done
         self._lent = (axis, experiment, done)
         self._lent_volts = first
+        self._lent_t = self._board_s
         self._held_by = holder
         return done
 
@@ -247,6 +249,9 @@ class SerialMotorDriver(FaultLatch):
             why = "; ".join(self._faults) or "the rig was disabled"
             self.hand_back(DriverFault(f"{self._held_by} stopped on {axis}: {why}"))
             return
+        if self._board_s == self._lent_t:  # no new reading (a timed-out exchange): same volts again
+            return
+        self._lent_t = self._board_s
         try:
             self._lent_volts = experiment.send((self._angle[axis], self._board_s))
         except StopIteration as stop:

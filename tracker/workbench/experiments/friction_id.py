@@ -196,7 +196,7 @@ def _breakaway_volts(
     for _ in range(int(round(AMPLIFIER_LIMIT_V / RAMP_V_PER_S / ax.dt))):
         v += RAMP_V_PER_S * ax.dt
         th = yield from ax.step(s * v)
-        if abs(th - th0) > step_rad:
+        if s * (th - th0) > step_rad:  # moved the ramp's way (not the last move's drift)
             yield from ax.step(0.0)
             return v
     raise DataError(
@@ -294,13 +294,18 @@ def run_friction_id(
         sweep = friction_sweep(axis, driver.sample_period_s, first, gain_nm_per_v, inertia_kg_m2,
                                voltages_per_direction, max_speed_rad_s, pulse_s, travel_rad, progress, cancel)
         volts = next(sweep)
+        last_t = first[1]
         while True:
             driver.command(axis, volts)
             driver.tick()
             faults = driver.faults()
             if faults:  # the driver disabled itself: every run after this would read "did not move"
                 raise DriverFault(f"friction identification stopped on {axis}: {'; '.join(faults)}")
-            volts = sweep.send((driver.read_encoder(axis), driver.sample_time_s))
+            t = driver.sample_time_s
+            if t == last_t:  # no new reading (an exchange that timed out): the same volts again
+                continue
+            last_t = t
+            volts = sweep.send((driver.read_encoder(axis), t))
     except StopIteration as done:
         result: FrictionResult = done.value
         return result

@@ -159,3 +159,38 @@ def test_a_fault_during_the_sweep_stops_it_and_names_the_fault() -> None:
     # Before: the disabled driver's runs all read "did not move" and the job blamed the voltages.
     with pytest.raises(DriverFault, match="watchdog"):
         run_friction_id(_TripsAfter(_rig("pan"), 3000), "pan")  # type: ignore[arg-type]
+
+
+class _TimingOutHost(_SlippingHost):
+    """A rig whose exchanges time out now and then: for 25 samples in every 200 the host gets no
+    new reading (the angle and its time stamp stay the last ones) while the rig moves on."""
+
+    def __init__(self, rig: SimDriver) -> None:
+        super().__init__(rig)
+        self._held: tuple[float, float] | None = None
+
+    def tick(self) -> None:
+        self._n += 1
+        self._rig.tick()
+        frozen = self._n % 200 < 25
+        if frozen and self._held is None:
+            self._held = (self._rig.read_encoder("pan"), self._rig.sample_time_s)
+        elif not frozen:
+            self._held = None
+
+    def read_encoder(self, axis: str) -> float:
+        return self._held[0] if self._held is not None and axis == "pan" else self._rig.read_encoder(axis)
+
+    @property
+    def sample_time_s(self) -> float:
+        return self._held[1] if self._held is not None else self._rig.sample_time_s
+
+
+def test_a_reading_that_did_not_come_is_not_taken_for_a_still_axis() -> None:
+    # A frozen reading looked like an axis at rest: the break-away ramp then started while the
+    # axis still coasted, took the coast for a break-away, and no constant-voltage run moved.
+    res = run_friction_id(_TimingOutHost(_rig("pan")), "pan", voltages_per_direction=5)  # type: ignore[arg-type]
+    true = AxisModel.for_axis("pan").params
+    for line in (res.positive, res.negative):
+        assert line.coulomb_nm == pytest.approx(true["coulomb.torque"], rel=0.05)
+        assert line.viscous_nm_s_per_rad == pytest.approx(true["viscous.b"], rel=0.1)
