@@ -44,7 +44,8 @@ from tracker.workbench.compare.compare import horizon_samples, score_model
 from tracker.workbench.fit.search import FINE_GRID, HIDDEN_STATE_PARAMS, grid_on_prediction, search_start
 from tracker.workbench.fit.torques import replace_params
 from tracker.workbench.measurements.data import Measurement
-from tracker.workbench.measurements.states import StateEstimate, estimate_states, with_load_observer
+from tracker.workbench.measurements.observed import predict_observed
+from tracker.workbench.measurements.states import StateEstimate, estimate_states
 
 FloatArray = NDArray[np.float64]
 FitMethod = Literal["k_step", "inverse_dynamics"]
@@ -530,8 +531,11 @@ def fit_model(
             if progress is not None and n_eval % 10 == 0:
                 progress(min(0.95, 0.1 + 0.85 * n_eval / 150.0))
             m = coords.decode(model0, x)
-            e = with_load_observer(est, m, meas) if two_mass else est
-            pred = predict_windows(m, u, dt, sel_starts, k + 1, e.initial_states(sel_starts))[:, 1 + cols]
+            if two_mass:
+                pred = predict_observed(m, meas, est, sel_starts, k + 1)[:, 1 + cols]
+            else:
+                x0s = est.initial_states(sel_starts)
+                pred = predict_windows(m, u, dt, sel_starts, k + 1, x0s)[:, 1 + cols]
             r: FloatArray = ((sel_y - pred) / noise).ravel()
             return r
 

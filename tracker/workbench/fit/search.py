@@ -27,7 +27,6 @@ from scipy import stats
 from tracker.errors import ConfigError
 from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, get_param, is_generic
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import predict_windows
 from tracker.workbench.fit.torques import (
     fit_inverse_dynamics,
     linear_generic_params,
@@ -37,7 +36,8 @@ from tracker.workbench.fit.torques import (
 )
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.idim import effective_samples
-from tracker.workbench.measurements.states import StateEstimate, encoder_step_rad, with_load_observer
+from tracker.workbench.measurements.observed import observed_cost
+from tracker.workbench.measurements.states import StateEstimate, encoder_step_rad
 
 FloatArray = NDArray[np.float64]
 
@@ -81,13 +81,18 @@ class StartValues:
     rivals: tuple[AxisModel, ...] = ()
 
 
-def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int, stride: int = 1) -> float:
-    """Mean squared k-step window prediction error (rad²) of ``model`` (every ``stride``-th window)."""
+def window_cost(
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    k: int,
+    stride: int = 1,
+    abandon_above: float = math.inf,
+) -> float:
+    """Mean squared k-step window prediction error (rad²) of ``model`` (every ``stride``-th
+    window); infinite as soon as it is sure to exceed ``abandon_above`` (a search's best so far)."""
     starts = np.arange(0, meas.n - k - 1, k * stride, dtype=np.int64)
-    e = with_load_observer(est, model, meas)
-    pred = predict_windows(model, meas.u_v, meas.dt_s, starts, k + 1, e.initial_states(starts))[:, 1:]
-    y = meas.theta_rad[starts[:, None] + np.arange(1, k + 1)[None, :]]
-    return float(np.mean((y - pred) ** 2))
+    return observed_cost(model, meas, est, starts, k + 1, abandon_above)
 
 
 def ripple_spectrum(
@@ -241,7 +246,7 @@ def grid_on_prediction(
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
         cand = replace_params(model, {name: v})
-        cost = window_cost(meas, est, cand, k, stride)
+        cost = window_cost(meas, est, cand, k, stride, best_cost)
         if cost < best_cost:
             best, best_cost = cand, cost
     return best
@@ -457,7 +462,10 @@ def search_resonance(
     profile: list[tuple[float, AxisModel]] = []
     for f in freqs:
         cands = [replace_params(model, {"compliance.frequency": f, "compliance.damping": z}) for z in zetas]
-        costs = [window_cost(meas, est, c, k, GRID_WINDOW_STRIDE) for c in cands]
+        # Only the best damping's cost enters the profile: the others may stop early.
+        costs: list[float] = []
+        for c in cands:
+            costs.append(window_cost(meas, est, c, k, GRID_WINDOW_STRIDE, min(costs, default=math.inf)))
         j = int(np.argmin(costs))
         profile.append((costs[j], cands[j]))
     found: list[tuple[float, AxisModel]] = []
