@@ -54,6 +54,11 @@ MAX_EVALUATIONS = 400
 # Short fits from the other basins of a multimodal start: evaluations, and windows kept (1 in n).
 PROBE_EVALUATIONS = 25
 PROBE_STRIDE = 4
+# Every basin's short fit first gets this many evaluations; only those whose cost is then
+# within PROBE_KEEP_RATIO of the best go on to PROBE_EVALUATIONS (a basin hundreds of times
+# worse after its base parameters were refitted once or twice is not where the answer is).
+PROBE_SCREEN_EVALUATIONS = 6
+PROBE_KEEP_RATIO = 1.5
 # Short fits from rival minima (a checked delay), and the z a rival's excess cost must reach
 # to be rejected (two-sided 95 %).
 RIVAL_EVALUATIONS = 8
@@ -207,6 +212,12 @@ class _Coords:
     def values(self, x: FloatArray) -> tuple[dict[str, float], float | None]:
         vals = {n: float(xi * s) for n, xi, s in zip(self.names, x, self.scale, strict=True)}
         gain = vals.pop("gain", None)
+        # x at a bound times the scale can round a hair past the catalogue's bound (0.5 Hz
+        # came back as 0.49999999999999994 and the model refused it).
+        for n in self.names:
+            if n in vals and not n.endswith((".cos", ".sin")):
+                prm = get_param(n)
+                vals[n] = min(max(vals[n], prm.lower), prm.upper)
         for eff, (amp_k, ph_k) in _POLAR.items():
             if eff + ".cos" in vals:
                 c, s = vals.pop(eff + ".cos"), vals.pop(eff + ".sin")
@@ -566,17 +577,27 @@ def fit_model(
         # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
         # base parameters not yet refitted. A short fit from each on a quarter of the windows,
         # then the full fit from the best.
-        trials = []
-        for cand in (model0, *start.alternatives):
-            trial = least_squares(
+        def short_fit(x: FloatArray, evaluations: int) -> Any:
+            return least_squares(
                 probe,
-                coords.encode(cand),
+                x,
                 bounds=(coords.lower, coords.upper),
                 method="trf",
                 x_scale=1.0,
                 diff_step=steps,
-                max_nfev=PROBE_EVALUATIONS,
+                max_nfev=evaluations,
             )
+
+        x_starts = [coords.encode(cand) for cand in (model0, *start.alternatives)]
+        screened = [short_fit(x, PROBE_SCREEN_EVALUATIONS) for x in x_starts]
+        best_screen = min(t.cost for t in screened)
+        trials = []
+        for x, first in zip(x_starts, screened, strict=True):
+            if first.cost > PROBE_KEEP_RATIO * best_screen:
+                continue
+            # A screen that used up its evaluations is run again in full (the same trial as
+            # without the screen); one that converged within them already is that trial.
+            trial = short_fit(x, PROBE_EVALUATIONS) if first.status == 0 else first
             trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
         x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
     sol = solve(x0)
