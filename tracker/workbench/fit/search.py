@@ -241,15 +241,31 @@ def grid_on_prediction(
     stride: int = GRID_WINDOW_STRIDE,
 ) -> AxisModel:
     """``model`` with ``name`` set to the grid value (or its own) of least k-step window cost."""
+    return _grid_with_cost(meas, est, model, name, grid, k, stride)[0]
+
+
+def _grid_with_cost(
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    name: str,
+    grid: Sequence[float],
+    k: int,
+    stride: int = GRID_WINDOW_STRIDE,
+    model_cost: float | None = None,
+) -> tuple[AxisModel, float]:
+    """:func:`grid_on_prediction` and the winner's cost; ``model_cost``: ``model``'s own, when
+    already known (at this ``stride``)."""
     prm = get_param(name)
-    best, best_cost = model, window_cost(meas, est, model, k, stride)
+    best = model
+    best_cost = window_cost(meas, est, model, k, stride) if model_cost is None else model_cost
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
         cand = replace_params(model, {name: v})
         cost = window_cost(meas, est, cand, k, stride, best_cost)
         if cost < best_cost:
             best, best_cost = cand, cost
-    return best
+    return best, best_cost
 
 
 def search_start(
@@ -460,26 +476,31 @@ def search_resonance(
     z0 = model.params["compliance.damping"]
     zetas = COARSE_DAMPING_GRID if fit_damping else (z0,)
     profile: list[tuple[float, AxisModel]] = []
+    j = 0
     for f in freqs:
         cands = [replace_params(model, {"compliance.frequency": f, "compliance.damping": z}) for z in zetas]
-        # Only the best damping's cost enters the profile: the others may stop early.
-        costs: list[float] = []
-        for c in cands:
-            costs.append(window_cost(meas, est, c, k, GRID_WINDOW_STRIDE, min(costs, default=math.inf)))
+        # Only the best damping's cost enters the profile: the others may stop early, and
+        # trying first the damping that won at the last frequency sets the bar soonest.
+        costs = [math.inf] * len(cands)
+        for i in (j, *(i for i in range(len(cands)) if i != j)):
+            costs[i] = window_cost(meas, est, cands[i], k, GRID_WINDOW_STRIDE, min(costs))
         j = int(np.argmin(costs))
         profile.append((costs[j], cands[j]))
     found: list[tuple[float, AxisModel]] = []
     for i in _local_minima([c for c, _ in profile], RESONANCE_BASINS):
-        m = profile[i][1]
+        # Each step's winner carries its cost (same stride) into the next: no re-evaluation.
+        c, m = profile[i]
         f0 = m.params["compliance.frequency"]
-        m = grid_on_prediction(meas, est, m, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
+        fine = [f0 * f for f in FINE_GRID]
+        m, c = _grid_with_cost(meas, est, m, "compliance.frequency", fine, k, model_cost=c)
         if fit_damping:
-            m = grid_on_prediction(meas, est, m, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
-            f0 = m.params["compliance.frequency"]
-            m = grid_on_prediction(
-                meas, est, m, "compliance.frequency", [f0 * f for f in RESONANCE_FINE_GRID], k
+            m, c = _grid_with_cost(
+                meas, est, m, "compliance.damping", COMPLIANCE_DAMPING_GRID, k, model_cost=c
             )
-        found.append((window_cost(meas, est, m, k, GRID_WINDOW_STRIDE), m))
+            f0 = m.params["compliance.frequency"]
+            fine = [f0 * f for f in RESONANCE_FINE_GRID]
+            m, c = _grid_with_cost(meas, est, m, "compliance.frequency", fine, k, model_cost=c)
+        found.append((c, m))
     return [m for _, m in sorted(found, key=lambda cm: cm[0])]
 
 
