@@ -5,8 +5,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 
 from tracker.errors import ConfigError
@@ -19,6 +19,9 @@ from tracker.plant.effects import (
     is_generic,
 )
 from tracker.plant.params import AxisPreset, get_preset
+
+if TYPE_CHECKING:
+    import control
 
 
 def _freeze(params: Mapping[str, float]) -> MappingProxyType[str, float]:
@@ -120,6 +123,8 @@ class AxisModel:
 
     def linearised_tf(self) -> control.TransferFunction:
         """Linearised plant θ(s)/u(s) = (K/J) / (s² + (b/J)·s), Coulomb dropped (seed ch. 4)."""
+        import control  # python-control takes a second to import; only this needs it
+
         j = self.params["inertia.J"]
         b = self.params["viscous.b"]
         return control.tf([self.gain_nm_per_v / j], [1.0, b / j, 0.0])

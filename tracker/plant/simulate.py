@@ -281,14 +281,21 @@ def advance(x: FloatArray, P: FloatArray, u: FloatArray, k: int, dt: float, dist
             tau_c = P[I_CK] * dz
             if dz != 0.0:
                 tau_c += P[I_CC] * (x[1] - x[3])
-            rest = -P[I_OFFSET] - P[I_RA] * math.sin(P[I_RN] * x[0] + P[I_RPH]) - tau_c
+            # Terms of absent effects are skipped, not multiplied by zero (two sines a sub-step).
+            rest = -P[I_OFFSET]
+            if P[I_RA] != 0.0:
+                rest -= P[I_RA] * math.sin(P[I_RN] * x[0] + P[I_RPH])
+            rest -= tau_c
             rest -= _table_torque(P, x[0])
             if u_a == u_b:
                 x[1] = _friction_step(x[1], P[I_K] * u_a + rest, P[I_JM], h, P)
             else:
                 x[1] = _friction_step(x[1], P[I_K] * u_a + rest, P[I_JM], half_h, P)
                 x[1] = _friction_step(x[1], P[I_K] * u_b + rest, P[I_JM], half_h, P)
-            x[3] += h * (tau_c - P[I_GT] * math.sin(x[2] + P[I_GPH]) + dist_nm) / P[I_JL]
+            load = tau_c
+            if P[I_GT] != 0.0:
+                load -= P[I_GT] * math.sin(x[2] + P[I_GPH])
+            x[3] += h * (load + dist_nm) / P[I_JL]
             x[0] += h * x[1]
             x[2] += h * x[3]
 

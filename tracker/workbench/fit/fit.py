@@ -44,7 +44,8 @@ from tracker.workbench.compare.compare import horizon_samples, score_model
 from tracker.workbench.fit.search import FINE_GRID, HIDDEN_STATE_PARAMS, grid_on_prediction, search_start
 from tracker.workbench.fit.torques import replace_params
 from tracker.workbench.measurements.data import Measurement
-from tracker.workbench.measurements.states import StateEstimate, estimate_states, with_load_observer
+from tracker.workbench.measurements.observed import predict_observed
+from tracker.workbench.measurements.states import StateEstimate, estimate_states
 
 FloatArray = NDArray[np.float64]
 FitMethod = Literal["k_step", "inverse_dynamics"]
@@ -53,6 +54,11 @@ MAX_EVALUATIONS = 400
 # Short fits from the other basins of a multimodal start: evaluations, and windows kept (1 in n).
 PROBE_EVALUATIONS = 25
 PROBE_STRIDE = 4
+# Every basin's short fit first gets this many evaluations; only those whose cost is then
+# within PROBE_KEEP_RATIO of the best go on to PROBE_EVALUATIONS (a basin hundreds of times
+# worse after its base parameters were refitted once or twice is not where the answer is).
+PROBE_SCREEN_EVALUATIONS = 6
+PROBE_KEEP_RATIO = 1.5
 # Short fits from rival minima (a checked delay), and the z a rival's excess cost must reach
 # to be rejected (two-sided 95 %).
 RIVAL_EVALUATIONS = 8
@@ -206,6 +212,12 @@ class _Coords:
     def values(self, x: FloatArray) -> tuple[dict[str, float], float | None]:
         vals = {n: float(xi * s) for n, xi, s in zip(self.names, x, self.scale, strict=True)}
         gain = vals.pop("gain", None)
+        # x at a bound times the scale can round a hair past the catalogue's bound (0.5 Hz
+        # came back as 0.49999999999999994 and the model refused it).
+        for n in self.names:
+            if n in vals and not n.endswith((".cos", ".sin")):
+                prm = get_param(n)
+                vals[n] = min(max(vals[n], prm.lower), prm.upper)
         for eff, (amp_k, ph_k) in _POLAR.items():
             if eff + ".cos" in vals:
                 c, s = vals.pop(eff + ".cos"), vals.pop(eff + ".sin")
@@ -530,8 +542,11 @@ def fit_model(
             if progress is not None and n_eval % 10 == 0:
                 progress(min(0.95, 0.1 + 0.85 * n_eval / 150.0))
             m = coords.decode(model0, x)
-            e = with_load_observer(est, m, meas) if two_mass else est
-            pred = predict_windows(m, u, dt, sel_starts, k + 1, e.initial_states(sel_starts))[:, 1 + cols]
+            if two_mass:
+                pred = predict_observed(m, meas, est, sel_starts, k + 1)[:, 1 + cols]
+            else:
+                x0s = est.initial_states(sel_starts)
+                pred = predict_windows(m, u, dt, sel_starts, k + 1, x0s)[:, 1 + cols]
             r: FloatArray = ((sel_y - pred) / noise).ravel()
             return r
 
@@ -562,17 +577,27 @@ def fit_model(
         # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
         # base parameters not yet refitted. A short fit from each on a quarter of the windows,
         # then the full fit from the best.
-        trials = []
-        for cand in (model0, *start.alternatives):
-            trial = least_squares(
+        def short_fit(x: FloatArray, evaluations: int) -> Any:
+            return least_squares(
                 probe,
-                coords.encode(cand),
+                x,
                 bounds=(coords.lower, coords.upper),
                 method="trf",
                 x_scale=1.0,
                 diff_step=steps,
-                max_nfev=PROBE_EVALUATIONS,
+                max_nfev=evaluations,
             )
+
+        x_starts = [coords.encode(cand) for cand in (model0, *start.alternatives)]
+        screened = [short_fit(x, PROBE_SCREEN_EVALUATIONS) for x in x_starts]
+        best_screen = min(t.cost for t in screened)
+        trials = []
+        for x, first in zip(x_starts, screened, strict=True):
+            if first.cost > PROBE_KEEP_RATIO * best_screen:
+                continue
+            # A screen that used up its evaluations is run again in full (the same trial as
+            # without the screen); one that converged within them already is that trial.
+            trial = short_fit(x, PROBE_EVALUATIONS) if first.status == 0 else first
             trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
         x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
     sol = solve(x0)

@@ -27,7 +27,6 @@ from scipy import stats
 from tracker.errors import ConfigError
 from tracker.plant.effects import BASE_EFFECTS, CATALOGUE, get_param, is_generic
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import predict_windows
 from tracker.workbench.fit.torques import (
     fit_inverse_dynamics,
     linear_generic_params,
@@ -37,7 +36,8 @@ from tracker.workbench.fit.torques import (
 )
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.idim import effective_samples
-from tracker.workbench.measurements.states import StateEstimate, encoder_step_rad, with_load_observer
+from tracker.workbench.measurements.observed import observed_cost
+from tracker.workbench.measurements.states import StateEstimate, encoder_step_rad
 
 FloatArray = NDArray[np.float64]
 
@@ -81,13 +81,18 @@ class StartValues:
     rivals: tuple[AxisModel, ...] = ()
 
 
-def window_cost(meas: Measurement, est: StateEstimate, model: AxisModel, k: int, stride: int = 1) -> float:
-    """Mean squared k-step window prediction error (rad²) of ``model`` (every ``stride``-th window)."""
+def window_cost(
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    k: int,
+    stride: int = 1,
+    abandon_above: float = math.inf,
+) -> float:
+    """Mean squared k-step window prediction error (rad²) of ``model`` (every ``stride``-th
+    window); infinite as soon as it is sure to exceed ``abandon_above`` (a search's best so far)."""
     starts = np.arange(0, meas.n - k - 1, k * stride, dtype=np.int64)
-    e = with_load_observer(est, model, meas)
-    pred = predict_windows(model, meas.u_v, meas.dt_s, starts, k + 1, e.initial_states(starts))[:, 1:]
-    y = meas.theta_rad[starts[:, None] + np.arange(1, k + 1)[None, :]]
-    return float(np.mean((y - pred) ** 2))
+    return observed_cost(model, meas, est, starts, k + 1, abandon_above)
 
 
 def ripple_spectrum(
@@ -236,15 +241,31 @@ def grid_on_prediction(
     stride: int = GRID_WINDOW_STRIDE,
 ) -> AxisModel:
     """``model`` with ``name`` set to the grid value (or its own) of least k-step window cost."""
+    return _grid_with_cost(meas, est, model, name, grid, k, stride)[0]
+
+
+def _grid_with_cost(
+    meas: Measurement,
+    est: StateEstimate,
+    model: AxisModel,
+    name: str,
+    grid: Sequence[float],
+    k: int,
+    stride: int = GRID_WINDOW_STRIDE,
+    model_cost: float | None = None,
+) -> tuple[AxisModel, float]:
+    """:func:`grid_on_prediction` and the winner's cost; ``model_cost``: ``model``'s own, when
+    already known (at this ``stride``)."""
     prm = get_param(name)
-    best, best_cost = model, window_cost(meas, est, model, k, stride)
+    best = model
+    best_cost = window_cost(meas, est, model, k, stride) if model_cost is None else model_cost
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
         cand = replace_params(model, {name: v})
-        cost = window_cost(meas, est, cand, k, stride)
+        cost = window_cost(meas, est, cand, k, stride, best_cost)
         if cost < best_cost:
             best, best_cost = cand, cost
-    return best
+    return best, best_cost
 
 
 def search_start(
@@ -455,23 +476,31 @@ def search_resonance(
     z0 = model.params["compliance.damping"]
     zetas = COARSE_DAMPING_GRID if fit_damping else (z0,)
     profile: list[tuple[float, AxisModel]] = []
+    j = 0
     for f in freqs:
         cands = [replace_params(model, {"compliance.frequency": f, "compliance.damping": z}) for z in zetas]
-        costs = [window_cost(meas, est, c, k, GRID_WINDOW_STRIDE) for c in cands]
+        # Only the best damping's cost enters the profile: the others may stop early, and
+        # trying first the damping that won at the last frequency sets the bar soonest.
+        costs = [math.inf] * len(cands)
+        for i in (j, *(i for i in range(len(cands)) if i != j)):
+            costs[i] = window_cost(meas, est, cands[i], k, GRID_WINDOW_STRIDE, min(costs))
         j = int(np.argmin(costs))
         profile.append((costs[j], cands[j]))
     found: list[tuple[float, AxisModel]] = []
     for i in _local_minima([c for c, _ in profile], RESONANCE_BASINS):
-        m = profile[i][1]
+        # Each step's winner carries its cost (same stride) into the next: no re-evaluation.
+        c, m = profile[i]
         f0 = m.params["compliance.frequency"]
-        m = grid_on_prediction(meas, est, m, "compliance.frequency", [f0 * f for f in FINE_GRID], k)
+        fine = [f0 * f for f in FINE_GRID]
+        m, c = _grid_with_cost(meas, est, m, "compliance.frequency", fine, k, model_cost=c)
         if fit_damping:
-            m = grid_on_prediction(meas, est, m, "compliance.damping", COMPLIANCE_DAMPING_GRID, k)
-            f0 = m.params["compliance.frequency"]
-            m = grid_on_prediction(
-                meas, est, m, "compliance.frequency", [f0 * f for f in RESONANCE_FINE_GRID], k
+            m, c = _grid_with_cost(
+                meas, est, m, "compliance.damping", COMPLIANCE_DAMPING_GRID, k, model_cost=c
             )
-        found.append((window_cost(meas, est, m, k, GRID_WINDOW_STRIDE), m))
+            f0 = m.params["compliance.frequency"]
+            fine = [f0 * f for f in RESONANCE_FINE_GRID]
+            m, c = _grid_with_cost(meas, est, m, "compliance.frequency", fine, k, model_cost=c)
+        found.append((c, m))
     return [m for _, m in sorted(found, key=lambda cm: cm[0])]
 
 

@@ -11,7 +11,7 @@ import csv
 import io
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -34,11 +34,17 @@ class Measurement:
     u_v: FloatArray
     theta_rad: FloatArray
     source: str = ""
+    _dt_s: float = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # The fitter asks for dt at every model evaluation: take the median once.
+        dt = float(np.median(np.diff(self.t_s))) if np.size(self.t_s) > 1 else math.nan
+        object.__setattr__(self, "_dt_s", dt)
 
     @property
     def dt_s(self) -> float:
         """The sample interval (median of the differences)."""
-        return float(np.median(np.diff(self.t_s)))
+        return self._dt_s
 
     @property
     def n(self) -> int:

@@ -1,0 +1,171 @@
+"""k-step window predictions of a model from observed states, in one compiled pass.
+
+The fitter and the searches judge a two-mass model (``backlash``, ``compliance``) by windows of
+k-step predictions started from the smoother's motor state and the model-based observer's
+load state (:func:`~tracker.workbench.measurements.states.with_load_observer`). Done in steps,
+that is one observer pass writing an (n, 4) array, a copy of every estimate, and a second
+compiled pass over the windows, for every candidate model. Here the observer runs once along
+the log and each window is predicted when the observer reaches its start: the same numbers
+(bit for bit), without the arrays in between, and the observer stops at the last window.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from tracker.errors import DataError
+from tracker.plant.model import AxisModel
+from tracker.plant.simulate import STATE_SIZE, advance, pack_params, predict_windows
+from tracker.workbench.measurements.data import Measurement
+from tracker.workbench.measurements.states import OBSERVER_BANDWIDTH_HZ, StateEstimate
+
+FloatArray = NDArray[np.float64]
+
+
+@njit(cache=True)
+def _observed_windows(
+    P_obs: FloatArray,
+    P_win: FloatArray,
+    u: FloatArray,
+    y: FloatArray,
+    dt: float,
+    l_pos: float,
+    l_vel: float,
+    starts: NDArray[np.int64],
+    horizon: int,
+    motor0: FloatArray,
+    load_shift: FloatArray,
+    abandon_sse: float,
+) -> tuple[FloatArray, int]:
+    """Observer along ``y`` (as :func:`states._model_observer`) and, at each start, a window
+    from [motor0[w, 0], motor0[w, 1], θl, (ωl + load_shift[w, 0]) − load_shift[w, 1]].
+
+    Returns (predictions of shape (m, horizon), windows done): when the summed squared error
+    of the windows' steps 1..horizon−1 against ``y`` passes ``abandon_sse``, it stops there.
+    """
+    m = starts.shape[0]
+    n = y.shape[0]
+    out = np.empty((m, horizon))
+    sse = 0.0
+    x = np.empty(STATE_SIZE)
+    x[0] = y[0]
+    x[1] = 0.0
+    x[2] = y[0]
+    x[3] = 0.0
+    xw = np.empty(STATE_SIZE)
+    k = 0
+    for w in range(m):
+        s = starts[w]
+        while k < s:
+            innov = y[k] - x[0]
+            x[0] += l_pos * innov
+            x[1] += l_vel * innov
+            advance(x, P_obs, u, k, dt, 0.0)
+            k += 1
+        # The observer's correction at sample s touches only the motor side: x[2:] is its
+        # load estimate at s.
+        xw[0] = motor0[w, 0]
+        xw[1] = motor0[w, 1]
+        xw[2] = x[2]
+        xw[3] = (x[3] + load_shift[w, 0]) - load_shift[w, 1]
+        for i in range(horizon):
+            out[w, i] = xw[0]
+            if i > 0 and s + i < n:
+                e = y[s + i] - xw[0]
+                sse += e * e
+            advance(xw, P_win, u, s + i, dt, 0.0)
+        if sse > abandon_sse:
+            return out, w + 1
+    return out, m
+
+
+def predict_observed(
+    model: AxisModel,
+    meas: Measurement,
+    est: StateEstimate,
+    starts: NDArray[np.int64],
+    horizon: int,
+) -> FloatArray:
+    """Windows of ``horizon`` samples of ``model``'s prediction of ``meas``, window w from sample
+    ``starts[w]`` (non-decreasing), motor angle unquantized. Returns shape (m, horizon).
+
+    The same as ``predict_windows(model, meas.u_v, dt, starts, horizon,
+    with_load_observer(est, model, meas).initial_states(starts))``: the load side of a
+    two-mass model comes from the model's observer, a rigid model's from the motor side.
+    """
+    return _predict(model, meas, est, starts, horizon, math.inf)[0]
+
+
+def observed_cost(
+    model: AxisModel,
+    meas: Measurement,
+    est: StateEstimate,
+    starts: NDArray[np.int64],
+    horizon: int,
+    abandon_above: float = math.inf,
+) -> float:
+    """Mean squared error (rad²) of steps 1..horizon−1 of :func:`predict_observed`'s windows.
+
+    A grid search only needs the best candidate's cost: once a candidate's summed error shows
+    its mean must exceed ``abandon_above`` (the best so far), the pass stops and the cost is
+    reported as infinite. Costs that are returned are computed exactly as without the bound.
+    """
+    s = np.ascontiguousarray(starts, dtype=np.int64)
+    y = meas.theta_rad[s[:, None] + np.arange(1, horizon)[None, :]]
+    # A little above the bound: the running sum and NumPy's mean round differently.
+    sse_bound = abandon_above * y.size * (1.0 + 1e-9)
+    pred, done = _predict(model, meas, est, s, horizon, sse_bound)
+    if done < s.size:
+        return math.inf
+    return float(np.mean((y - pred[:, 1:]) ** 2))
+
+
+def _predict(
+    model: AxisModel,
+    meas: Measurement,
+    est: StateEstimate,
+    starts: NDArray[np.int64],
+    horizon: int,
+    abandon_sse: float,
+) -> tuple[FloatArray, int]:
+    s = np.ascontiguousarray(starts, dtype=np.int64)
+    if s.size and (s[0] < 0 or s[-1] >= meas.n or np.any(np.diff(s) < 0)):
+        raise DataError(f"window starts must be non-decreasing sample indices below {meas.n}")
+    dt = meas.dt_s
+    motor = est.initial_states(s)
+    if not (model.has("backlash") or model.has("compliance")):
+        motor[:, 2] = motor[:, 0]
+        motor[:, 3] = motor[:, 1]
+        return predict_windows(model, meas.u_v, dt, s, horizon, motor), s.size
+    u = np.ascontiguousarray(meas.u_v, dtype=float)
+    if u.size and not np.all(np.isfinite(u)):
+        bad = int(np.flatnonzero(~np.isfinite(u))[0])
+        raise DataError(f"command sample {bad} is {u[bad]!r}")
+    y = np.ascontiguousarray(meas.theta_rad, dtype=float)
+    p = math.exp(-2.0 * math.pi * OBSERVER_BANDWIDTH_HZ * dt)
+    half_dt = 0.5 * dt
+    shift = np.empty((s.size, 2))
+    shift[:, 0] = half_dt * est.alpha_rad_s2[s]
+    shift[:, 1] = 0.5 * est.dt_s * est.alpha_rad_s2[np.maximum(s - 1, 0)]
+    span = (float(motor[:, 0].min()), float(motor[:, 0].max())) if s.size else (0.0, 0.0)
+    return _observed_windows(
+        pack_params(model, dt, quantize=False),
+        pack_params(model, dt, quantize=False, range_rad=span),
+        u,
+        y,
+        dt,
+        1.0 - p * p,
+        (1.0 - p) ** 2 / dt,
+        s,
+        int(horizon),
+        np.ascontiguousarray(motor[:, :2]),
+        shift,
+        float(abandon_sse),
+    )
+
+
+__all__ = ["observed_cost", "predict_observed"]
