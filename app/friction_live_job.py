@@ -27,7 +27,7 @@ from tracker.errors import DriverFault
 KIND = "friction-id"
 TRAVEL_SHARE = 0.85  # of the driver's own limit lines, either side of zero
 POLL_S = 0.1
-STALL_S = 2.0  # no sample exchange for this long: the control loop stopped; the job fails
+STALL_S = 10.0  # no sample exchange for this long: the control loop stopped; the job fails
 
 
 def check_rig(engine: Any, driver_url: str) -> Any:  # noqa: ANN401 - engine in, SerialMotorDriver out
