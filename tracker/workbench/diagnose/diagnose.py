@@ -166,23 +166,24 @@ def diagnose(
     refit = with_values(model, base_values)
     refit_score = judge.score(refit)
     base_model, base_score = (refit, refit_score) if refit_score.sse < current.sse else (model, current)
-    if model.effects and refit_present:
-        # A second round: the model already has an effect, fitted (by the user) together with the
-        # base, and its parameters trade with the base's (a bias with gravity's constant part, a
-        # delay with the inertia). Judge the candidates against the present structure at the
-        # judge's own optimum, or a candidate is credited with what a refit of what is already
-        # there would gain (and built on values that absorbed part of it).
+    two_mass = model.has("backlash") or model.has("compliance")
+    # A second round on a rigid model: the model already has an effect, fitted (by the user)
+    # together with the base, and its parameters trade with the base's (a bias with gravity's
+    # constant part, a delay with the inertia). Judge the candidates against the present structure
+    # at the judge's own optimum, or a candidate is credited with what a refit of what is already
+    # there would gain (and built on values that absorbed part of it). A belt or a dead band keeps
+    # its own path (torque effects refitted with the friction, judged on halves): refitted by the
+    # judge, the load's hidden state fits so closely that a torque of a fraction of a mN·m passed.
+    present = bool(model.effects) and not two_mass
+    if present and refit_present:
         base_model, base_score = refit_present_structure(judge, base_model, base_score, cancel)
     at_rest = sig.stuck[judge.starts]
     rest_err = float(base_score.window_sse[at_rest].sum() / max(base_score.sse, 1e-300))
     ctx = EvidenceContext(
         sig, design, base_reg, analyse_breakaway(meas, base_model), model, (rest_err, float(at_rest.mean()))
     )
-    two_mass = model.has("backlash") or model.has("compliance")
     rows = [
-        judge_candidate(
-            scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=bool(model.effects)
-        )
+        judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)
         for scr in screens.values()
     ]
     step(0.7)

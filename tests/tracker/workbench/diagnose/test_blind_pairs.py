@@ -10,6 +10,7 @@ from __future__ import annotations
 from functools import cache
 from typing import Any
 
+import tests.truthgen.matrix as matrix
 from tests.truthgen.matrix import generate_case
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.diagnose import Diagnosis, diagnose
@@ -23,10 +24,17 @@ def _named(verdict: str | None, effect: str) -> bool:
     return verdict == effect or EQUIVALENT.get(effect) == verdict
 
 
+FRESH_SEED = 9191  # a blind set of its own, never tuned on (bench/blind_matrix.py generate)
+
+
 @cache
-def _two_rounds(case_id: str) -> tuple[dict[str, Any], Diagnosis, Diagnosis | None]:
+def _two_rounds(case_id: str, seed: int | None = None) -> tuple[dict[str, Any], Diagnosis, Diagnosis | None]:
     """The case's truth, the first diagnosis and the diagnosis of the model fitted with its verdict."""
-    log, truth = generate_case(case_id)
+    if seed is None:
+        log, truth = generate_case(case_id)
+    else:
+        with matrix.seeded(seed):
+            log, truth = matrix.generate_case(case_id)
     meas = Measurement(log.t, log.u, log.theta, str(truth["id"]))
     axis, gain = str(truth["axis"]), float(truth["gain_nm_per_v"])
     first = diagnose(meas, AxisModel.for_axis(axis, gain_nm_per_v=gain))  # type: ignore[arg-type]
@@ -75,5 +83,19 @@ def test_a_single_effect_leaves_nothing_for_the_second_round() -> None:
     assert truth["hidden"] == ["gravity"]
     assert first.verdict == "gravity"
     assert second is not None and second.verdict is None, [
+        (c.effect, c.significant) for c in second.candidates
+    ]
+
+
+def test_a_belt_in_the_model_keeps_its_own_second_round() -> None:
+    """Regression (fresh seed): a 1 kHz log with a belt and a viscous asymmetry of 1 mN·m·s/rad.
+    The first round names the belt. Judged against the belt model refitted by the k-step loss,
+    whose load state then fits the log closely, a gravity of 0.6 mN·m passed the halves' test
+    and was named; a two-mass model keeps its own path (torque effects refitted with the
+    friction against the model as given), which names nothing here."""
+    truth, first, second = _two_rounds("viscous_asymmetry+compliance-004", FRESH_SEED)
+    assert sorted(truth["hidden"]) == ["compliance", "viscous_asymmetry"]
+    assert first.verdict == "compliance"
+    assert second is not None and second.verdict in (None, "viscous_asymmetry"), [
         (c.effect, c.significant) for c in second.candidates
     ]
