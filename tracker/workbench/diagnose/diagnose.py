@@ -36,6 +36,7 @@ from tracker.workbench.diagnose.judgement import (
     rank,
     reconsider_backlash,
     refine_leaders,
+    refit_present_structure,
     with_values,
 )
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
@@ -124,6 +125,7 @@ def diagnose(
     horizon_s: float | None = None,
     progress: Callable[[float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    refit_present: bool = True,
 ) -> Diagnosis:
     """Rank the effects ``model`` lacks by how much of ``meas`` they explain; give a verdict.
 
@@ -134,6 +136,8 @@ def diagnose(
     horizon_s : k-step prediction horizon (default 0.03 s, as ``compare``).
     progress : called with the fraction done (0..1).
     cancel : polled; returning True raises :class:`JobCancelled`.
+    refit_present : when ``model`` already has effects, refit its parameters (base and
+        effects) by the k-step error before judging the candidates against it.
 
     Returns
     -------
@@ -162,14 +166,24 @@ def diagnose(
     refit = with_values(model, base_values)
     refit_score = judge.score(refit)
     base_model, base_score = (refit, refit_score) if refit_score.sse < current.sse else (model, current)
+    two_mass = model.has("backlash") or model.has("compliance")
+    # A second round on a rigid model: the model already has an effect, fitted (by the user)
+    # together with the base, and its parameters trade with the base's (a bias with gravity's
+    # constant part, a delay with the inertia). Judge the candidates against the present structure
+    # at the judge's own optimum, or a candidate is credited with what a refit of what is already
+    # there would gain (and built on values that absorbed part of it). A belt or a dead band keeps
+    # its own path (torque effects refitted with the friction, judged on halves): refitted by the
+    # judge, the load's hidden state fits so closely that a torque of a fraction of a mN·m passed.
+    present = bool(model.effects) and not two_mass
+    if present and refit_present:
+        base_model, base_score = refit_present_structure(judge, base_model, base_score, cancel)
     at_rest = sig.stuck[judge.starts]
     rest_err = float(base_score.window_sse[at_rest].sum() / max(base_score.sse, 1e-300))
     ctx = EvidenceContext(
         sig, design, base_reg, analyse_breakaway(meas, base_model), model, (rest_err, float(at_rest.mean()))
     )
-    two_mass = model.has("backlash") or model.has("compliance")
     rows = [
-        judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel)
+        judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)
         for scr in screens.values()
     ]
     step(0.7)
@@ -187,7 +201,7 @@ def diagnose(
     notes = notes_for(candidates, ctx, verdict)
     small = [(r.effect, negligible(r.effect, r.model, ctx)) for r in rows if r.passed and not r.significant]
     notes += tuple(f"{effect} is detectable but small: {why}" for effect, why in small if why)
-    far_off = base_model is not model and current.sse > FAR_OFF_RATIO * refit_score.sse
+    far_off = refit_score.sse < current.sse and current.sse > FAR_OFF_RATIO * refit_score.sse
     if far_off:
         notes = (
             "the current model's parameters are far from this data: with its base parameters refitted by "
@@ -199,7 +213,14 @@ def diagnose(
     if latency is not None and latency.model is not None:
         # A one-sample latency is part of the loop, not a missing effect of the axis; judge the
         # rest against a model that has it, or every other candidate competes to explain it.
-        inner = diagnose(meas, latency.model, horizon_s, lambda f: step(0.8 + 0.2 * f), cancel)
+        inner = diagnose(
+            meas,
+            latency.model,
+            horizon_s,
+            lambda f: step(0.8 + 0.2 * f),
+            cancel,
+            refit_present=bool(model.effects),
+        )
         found = [c for c in inner.candidates if c.significant]
         others = [c for c in inner.candidates if not c.significant]
         candidates = [*found, latency, *others]

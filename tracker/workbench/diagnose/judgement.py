@@ -57,6 +57,10 @@ MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-ord
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 OVERWHELMING_P = 1e-10
 MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
+# A torque effect refitted by simulation jointly with the effects already in the model (second
+# round): the same bar, on each half of the run, against the present structure refitted alike.
+MIN_HALF_GAIN_JOINT = MIN_HALF_GAIN_TWO_MASS
+JOINT_REFIT_EVALS = 30
 BELT_FREQUENCIES_HZ = (3.0, 4.5, 6.5, 9.0, 12.0, 16.0, 22.0, 30.0, 42.0, 60.0)
 BELT_DAMPINGS = (0.05, 0.15, 0.4)
 EFFECT_PARAMS = {"gravity": 2, "ripple": 3, "stiction": 2, "compliance": 2}
@@ -180,8 +184,14 @@ def judge_candidate(
     ctx: EvidenceContext,
     two_mass: bool,
     cancel: Callable[[], bool] | None,
+    present: bool = False,
 ) -> Judged:
-    """Build the candidate model of ``scr``'s effect and decide whether it is significant."""
+    """Build the candidate model of ``scr``'s effect and decide whether it is significant.
+
+    ``present``: the model already has effects (a second round), so ``base_model`` is the present
+    structure refitted by simulation (:func:`refit_present_structure`), and a torque effect the
+    screening supports is also refitted by simulation together with it (:func:`_refit_jointly`).
+    """
     effect = scr.effect
     cand = _candidate_model(base_model, scr, ctx)
     score = judge.score(cand)
@@ -258,6 +268,14 @@ def judge_candidate(
         significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_TWO_MASS and _kstep_ok(
             effect, cmp
         )
+    elif present and screen_ok and not significant and effect in TORQUE_EFFECTS:
+        joint, joint_score = _refit_jointly(judge, base_model, cand, cancel)
+        joint_cmp = judge.compare(base_score, joint_score)
+        if joint_score.sse < score.sse:
+            cand, score, cmp = joint, joint_score, joint_cmp
+            significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_JOINT and _kstep_ok(
+                effect, cmp
+            )
     passed = significant
     significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
     if effect == "delay" and significant:
@@ -289,6 +307,39 @@ def stiction_at_rest(ctx: EvidenceContext) -> str | None:
         return None
     lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
     return stiction_effect.established_at_rest(sliding, excess, lower)
+
+
+def refit_present_structure(
+    judge: KStepJudge, model: AxisModel, score: KStepScore, cancel: Callable[[], bool] | None
+) -> tuple[AxisModel, KStepScore]:
+    """The model with its base and effects' parameters refitted by the k-step error (or the
+    model itself when the refit predicts no better).
+
+    A model that already has an effect was fitted with it, by a loss other than the judge's;
+    its effect's parameters trade with the base's (a bias torque with gravity's value at the
+    working angle, a delay with the inertia). Candidates judged against it unrefitted are
+    credited with the refit's own gain, and searched on values that absorbed part of them.
+    """
+    refitted, _ = refine(judge, model, model.free_param_names(), cancel=cancel)
+    refitted_score = judge.score(refitted)
+    return (refitted, refitted_score) if refitted_score.sse < score.sse else (model, score)
+
+
+def _refit_jointly(
+    judge: KStepJudge, base: AxisModel, cand: AxisModel, cancel: Callable[[], bool] | None
+) -> tuple[AxisModel, KStepScore]:
+    """A torque effect refitted by simulation together with every parameter already present.
+
+    In a second round the torque regression refits the new effect jointly with the present one,
+    but where they look alike (gravity's constant part and a bias per direction, which the moving
+    samples cannot tell apart) it may trade them to values that hold the axis wrongly at rest;
+    the simulation, which has the starts from rest, sorts them out. Starts from the candidate's
+    values (the better of the regression's joint ones and the effect's own on the present
+    values: :func:`judge_candidate`).
+    """
+    names = [*base.free_param_names(), *(k for k in cand.free_param_names() if k not in base.params)]
+    fitted, _ = refine(judge, cand, names, max_evals=JOINT_REFIT_EVALS, cancel=cancel)
+    return fitted, judge.score(fitted)
 
 
 def refine_leaders(
@@ -571,6 +622,7 @@ __all__ = [
     "rank",
     "reconsider_backlash",
     "refine_leaders",
+    "refit_present_structure",
     "stiction_at_rest",
     "with_values",
 ]
