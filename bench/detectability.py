@@ -210,6 +210,19 @@ def _stiction(
     }
 
 
+def _moving_signals(
+    p: Mapping[str, float], t: FloatArray, u: FloatArray, theta: FloatArray, cutoff_hz: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]:
+    """:func:`_signals` and the samples where the axis moves (clear of the run's first and
+    last 50 ms), as the regressions on moving data use them."""
+    step = p.get("quantization.step", 0.0)
+    dt, u_lp, th, om, al = _signals(t, u, theta, cutoff_hz)
+    moving = np.abs(om) > MOVING_COUNTS_PER_S * max(step, 1e-9)
+    edge = max(1, int(round(0.05 / dt)))
+    moving[:edge] = moving[-edge:] = False
+    return u_lp, th, om, al, moving
+
+
 def _coulomb_se(
     p: Mapping[str, float],
     truth: Mapping[str, Any],
@@ -220,11 +233,7 @@ def _coulomb_se(
 ) -> float:
     """Standard error of the Coulomb torque a regression on the moving samples gets (true
     structure, Stribeck known), under the log's coloured residual (effective samples)."""
-    step = p.get("quantization.step", 0.0)
-    dt, u_lp, th, om, al = _signals(t, u, theta, cutoff_hz)
-    moving = np.abs(om) > MOVING_COUNTS_PER_S * max(step, 1e-9)
-    edge = max(1, int(round(0.05 / dt)))
-    moving[:edge] = moving[-edge:] = False
+    u_lp, th, om, al, moving = _moving_signals(p, t, u, theta, cutoff_hz)
     if moving.sum() < 10:
         return math.inf
     y = float(truth["gain_nm_per_v"]) * u_lp[moving] - _torque("stiction", p, th[moving], om[moving])
@@ -246,11 +255,7 @@ def _z(
     cutoff_hz: float,
 ) -> float:
     """The effect's torque signature in standard errors of the log's own noise at one bandwidth."""
-    step = p.get("quantization.step", 0.0)
-    dt, u_lp, th, om, al = _signals(t, u, theta, cutoff_hz)
-    moving = np.abs(om) > MOVING_COUNTS_PER_S * max(step, 1e-9)
-    edge = max(1, int(round(0.05 / dt)))
-    moving[:edge] = moving[-edge:] = False
+    u_lp, th, om, al, moving = _moving_signals(p, t, u, theta, cutoff_hz)
     if moving.sum() < 10:
         return 0.0
     k = float(truth["gain_nm_per_v"])
