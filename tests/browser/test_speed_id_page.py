@@ -1,14 +1,18 @@
 """The console's speed-table identification card: hidden on the simulated rig, offered on a PTZ
 camera (the service on `tracker camera-emulator` over UDP, both real processes); Start runs the job
-and the measured table against the profile's is shown."""
+and the measured table against the profile's is shown. On a DC rig behind the emulated serial
+board (`tracker motor-emulator`), the friction-ID card offers the live rig, and its sweep runs and
+cancels."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import httpx
 import pytest
@@ -19,18 +23,20 @@ pytestmark = pytest.mark.browser
 T = 30_000
 
 
-@pytest.fixture(scope="module")
-def camera_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
-    if not CHROMIUM.exists():
-        pytest.skip("/usr/bin/chromium is absent")
-    data = tmp_path_factory.mktemp("camera-console")
-    cam_port, port, vport = free_port(), free_port(), free_port()
+@contextlib.contextmanager
+def _console(data: Path, driver: str, device: list[str], ready: Callable[[], bool]) -> Iterator[Server]:
+    """The console on ``driver`` beside the device emulator ``device`` (a command line), both
+    real processes; ``ready`` says when the emulator serves."""
+    port, vport = free_port(), free_port()
     log = open(data / "server.log", "w")  # noqa: SIM115
-    emu = subprocess.Popen([sys.executable, "-m", "tracker", "camera-emulator", "--port", str(cam_port)],
-                           cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
+    emu = subprocess.Popen(device, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
+    for _ in range(100):
+        if ready():
+            break
+        time.sleep(0.1)
     env = dict(os.environ, TRACKER_DATA_DIR=str(data), TRACKER_PORT=str(port), TRACKER_HOST="127.0.0.1",
                TRACKER_VIEWER_PORT=str(vport), TRACKER_LOG_LEVEL="warning", TRACKER_AUDIO_ENABLED="false",
-               TRACKER_DRIVER=f"visca+udp://127.0.0.1:{cam_port}")
+               TRACKER_DRIVER=driver)
     proc = subprocess.Popen([sys.executable, "-c", "from app.main import run_server; run_server()"],
                             cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
@@ -54,6 +60,31 @@ def camera_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
             except subprocess.TimeoutExpired:
                 p.kill()
         log.close()
+
+
+@pytest.fixture(scope="module")
+def camera_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    if not CHROMIUM.exists():
+        pytest.skip("/usr/bin/chromium is absent")
+    data = tmp_path_factory.mktemp("camera-console")
+    cam_port = free_port()
+    with _console(data, f"visca+udp://127.0.0.1:{cam_port}",
+                  [sys.executable, "-m", "tracker", "camera-emulator", "--port", str(cam_port)],
+                  lambda: True) as server:
+        yield server
+
+
+@pytest.fixture(scope="module")
+def serial_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    """The console on a DC rig behind the emulated serial motor controller."""
+    if not CHROMIUM.exists():
+        pytest.skip("/usr/bin/chromium is absent")
+    data = tmp_path_factory.mktemp("serial-console")
+    link = data / "ttyRIG"
+    with _console(data, f"serial://{link}?baud=1000000&rate=250&watchdog_ms=1000",
+                  [sys.executable, "-m", "tracker", "motor-emulator", "--pty-link", str(link), "--quiet"],
+                  link.exists) as server:
+        yield server
 
 
 def open_friction_page(browser, server: Server):  # type: ignore[no-untyped-def]
@@ -115,5 +146,38 @@ def test_speed_id_runs_on_the_camera(browser, camera_server: Server) -> None:  #
     slow = next(t for t in table if t["step"] == 1 and t["direction"] == 1)
     assert abs(slow["deviation_percent"]) < 3.0  # the emulator's twin is the profile itself
     assert f"{slow['measured_deg_s']:.3f}" in text
+    ctx.close()
+    assert not errors, errors
+
+
+def test_the_live_rig_is_offered_only_on_a_serial_rig(browser, server: Server) -> None:  # type: ignore[no-untyped-def]
+    ctx, pg, errors = open_friction_page(browser, server)
+    pg.wait_for_timeout(500)
+    assert pg.eval_on_selector("#fric-live", "o => o.hidden")
+    ctx.close()
+    assert not errors, errors
+
+
+def test_the_live_sweep_runs_on_the_serial_rig_and_cancels(browser, serial_server: Server) -> None:  # type: ignore[no-untyped-def]
+    ok = False
+    for _ in range(150):  # connected and enabled (hold)
+        st = serial_server.api("GET", "/status").json()
+        if st["driver"]["state"] == "connected" and st["mode"] == "hold":
+            ok = True
+            break
+        time.sleep(0.1)
+    assert ok, st
+    ctx, pg, errors = open_friction_page(browser, serial_server)
+    pg.wait_for_function("!document.querySelector('#fric-live').hidden", timeout=T)
+    assert "serial://" in pg.inner_text("#fric-live")
+    pg.select_option("#fric-source", "live")
+    pg.click("#fric-form button[type=submit]")
+    pg.wait_for_function("document.querySelector('#fric-status').textContent.includes('running')", timeout=T)
+    assert serial_server.api("GET", "/status").json()["driver"]["held_axis"] == "pan"
+    pg.click("#fric-cancel")
+    cancelled = "document.querySelector('#fric-status').textContent.includes('cancelled')"
+    pg.wait_for_function(cancelled, timeout=T)
+    st = serial_server.api("GET", "/status").json()
+    assert st["driver"]["held_by"] is None and not st["faults"], st
     ctx.close()
     assert not errors, errors
