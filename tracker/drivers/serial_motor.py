@@ -235,7 +235,10 @@ class SerialMotorDriver(FaultLatch):
         self._held_by = None
         if lent is not None:
             _, experiment, done = lent
-            experiment.close()
+            # From another thread while the loop's thread runs a step: that step is its last
+            # (the lending is over); the generator cannot be closed mid-step.
+            with contextlib.suppress(ValueError):
+                experiment.close()
             if not done.done():
                 done.set_exception(error or DriverFault(f"{self.spec.url}: the experiment was stopped"))
 
@@ -254,14 +257,19 @@ class SerialMotorDriver(FaultLatch):
         self._lent_t = self._board_s
         try:
             self._lent_volts = experiment.send((self._angle[axis], self._board_s))
+            return
         except StopIteration as stop:
-            self._lent = None
-            done.set_result(stop.value)
-            self.hand_back()
+            result, error = stop.value, None
         except BaseException as exc:  # noqa: BLE001 - the experiment's error is its job's, not the loop's
-            self._lent = None
-            done.set_exception(exc)
-            self.hand_back()
+            result, error = None, exc
+        self._lent = None
+        self._u[axis] = 0.0
+        self._held_by = None
+        if not done.done():  # not already ended by hand_back from another thread
+            if error is None:
+                done.set_result(result)
+            else:
+                done.set_exception(error)
 
     def read_encoder(self, axis: str) -> float:
         return self._angle[self._check_axis(axis)]

@@ -263,6 +263,24 @@ def test_sample_times_are_the_boards_clock_unwrapped(
     assert driver.sample_time_s - before == pytest.approx(2000e-6)  # not minus an hour
 
 
+def test_a_hand_back_during_a_step_ends_the_lending_without_breaking_the_loop(
+    driver: SerialMotorDriver,
+) -> None:
+    driver.enable()
+
+    def experiment() -> Iterator[float]:
+        yield 0.1
+        driver.hand_back()  # as the service's shutdown does, while the loop's thread runs a step
+        yield 0.1
+        yield 0.1
+
+    done = driver.take_over("a test", "pan", experiment())  # type: ignore[arg-type]
+    assert driver.held_axis == "pan"
+    drive(driver, 0.0, 0.0, 0.05)  # nothing may escape tick(): it is the control loop
+    assert done.done() and isinstance(done.exception(), DriverFault)
+    assert driver.held_by is None and driver.held_axis is None and not driver.faults()
+
+
 @pytest.mark.slow
 def test_friction_id_runs_on_the_emulator(emulator: MotorEmulator) -> None:
     from tracker.workbench.experiments.friction_id import run_friction_id
