@@ -15,7 +15,7 @@ from typing import Any
 
 from fastapi import APIRouter
 
-from app.auth import Engineer, Viewer
+from app.auth import Engineer, Principal, Viewer
 from app.errors import NotFound
 from app.friction_live_job import KIND as LIVE_KIND
 from app.friction_live_job import check_rig, friction_live_job
@@ -36,9 +36,8 @@ async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dic
     if body.source == "live":
         rig = check_rig(svc.engine, svc.settings.driver)
         job = friction_live_job(rig, body.axis, body.voltages)
-        job_id = svc.jobs.start_local(LIVE_KIND, body.model_dump(), job)
-        await svc.audit.record(who, "job.start", str(job_id), {"kind": LIVE_KIND, **body.model_dump()})
-        return svc.db.get_job(job_id) or {"id": job_id}
+        return await _started(svc, who, LIVE_KIND, body.model_dump(),
+                              svc.jobs.start_local(LIVE_KIND, body.model_dump(), job))
     hidden = practice_model(svc.db) if body.source == "practice" else None
     if body.source == "practice" and hidden is None:
         raise NotFound("no practice rig yet: start one with POST /api/v1/practice")
@@ -47,8 +46,7 @@ async def start_friction_id(body: FrictionJobIn, svc: Svc, who: Engineer) -> dic
     hidden_json = None if hidden is None else model_to_json(hidden, hidden_axis)
     job_id = svc.jobs.start("friction-id", body.model_dump(), friction_job, rig_config, hidden_json,
                             hidden_axis, body.axis, body.voltages)
-    await svc.audit.record(who, "job.start", str(job_id), {"kind": "friction-id", **body.model_dump()})
-    return svc.db.get_job(job_id) or {"id": job_id}
+    return await _started(svc, who, "friction-id", body.model_dump(), job_id)
 
 
 @router.post("/speed-id", status_code=202,
@@ -58,7 +56,14 @@ async def start_speed_id(body: SpeedIdJobIn, svc: Svc, who: Engineer) -> dict[st
     cam = check_camera(svc.engine, svc.settings.driver)
     steps = None if body.steps is None else tuple(body.steps)
     job_id = svc.jobs.start_local(KIND, body.model_dump(), speed_id_job(cam, body.axis, steps, body.count))
-    await svc.audit.record(who, "job.start", str(job_id), {"kind": KIND, **body.model_dump()})
+    return await _started(svc, who, KIND, body.model_dump(), job_id)
+
+
+async def _started(
+    svc: Svc, who: Principal, kind: str, params: dict[str, Any], job_id: int
+) -> dict[str, Any]:
+    """The audit line for a started job, and the job as the store has it."""
+    await svc.audit.record(who, "job.start", str(job_id), {"kind": kind, **params})
     return svc.db.get_job(job_id) or {"id": job_id}
 
 
