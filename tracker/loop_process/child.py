@@ -3,9 +3,11 @@ over the pipe, and runs the loop with the calls handled between chunks.
 
 :func:`serve` is the process's target (``multiprocessing``, spawned: the service has threads
 that must not be forked). Before the loop runs, calls are answered as they come (the service
-restores its stored gains and models then); once it runs, the loop's thread answers at most
-``CALLS_PER_CHUNK`` after each chunk, so the only thread running Python in this process is the
-loop's (the main thread waits in the event loop's poll). After every chunk it writes the
+restores its stored gains and models then); once it runs, the loop's thread answers them after
+each chunk, those that came during the chunk and then those that come while it waits for the
+next tick (until ``SPIN_S`` before it is due; at most ``CALLS_PER_CHUNK`` each), so a call
+waits for the chunk in progress at most, and the only thread running Python in this process is
+the loop's (the main thread waits in the event loop's poll). After every chunk it writes the
 snapshot, status and timing to the shared block (:mod:`tracker.loop_process.shared`).
 
 Safety stays here: the engine checks every target and rate against its soft limits and the
@@ -29,6 +31,7 @@ from tracker.engine import Engine
 from tracker.errors import ConfigError
 from tracker.loop_process.shared import PushedTarget, SharedLoop
 from tracker.loop_process.wire import Call, CarriedError, Ready, Reply
+from tracker.realtime import SPIN_S
 from tracker.targets import Target
 from tracker.telemetry import TelemetrySnapshot
 
@@ -88,6 +91,7 @@ class LoopServer:
         self.engine, self.shared, self.conn = engine, shared, conn
         self.table = command_table(engine, shared)
         self.parent_gone = False
+        self._wake_s = math.nan  # perf_counter: stop waiting for calls (SPIN_S before the next tick)
 
     def answer(self, call: Call) -> None:
         fn = self.table.get(call.method)
@@ -105,6 +109,9 @@ class LoopServer:
         timing = e.timing()
         age = timing.last_tick_age_s
         last_start = time.perf_counter() - age if math.isfinite(age) else math.nan
+        # The paced loop's next due time: this tick's (its start less its lateness) + a period.
+        self._wake_s = (last_start - timing.last_lateness_s + timing.period_s - SPIN_S
+                        if timing.in_thread else math.nan)
         if snap is None:
             self.shared.write_status(e.status(), e.driver.enabled, timing, last_start,
                                      self.shared.read_text().source)
@@ -131,9 +138,15 @@ class LoopServer:
     def after_chunk(self, snap: TelemetrySnapshot) -> None:
         """The loop's thread, between chunks: publish, then answer the calls that came."""
         self.publish_status(snap)
+        wake_s = self._wake_s
         try:
-            for _ in range(CALLS_PER_CHUNK):
+            for _ in range(CALLS_PER_CHUNK):  # those that came during the chunk
                 if not self.conn.poll(0):
+                    break
+                self.answer(self.conn.recv())
+            for _ in range(CALLS_PER_CHUNK):  # those that come before the next tick
+                remaining_s = wake_s - time.perf_counter()
+                if not remaining_s > 0.0 or not self.conn.poll(remaining_s):
                     break
                 self.answer(self.conn.recv())
         except (EOFError, OSError):  # the service is gone: nobody may steer; stop
