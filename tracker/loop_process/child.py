@@ -22,6 +22,7 @@ import gc
 import inspect
 import math
 import os
+import select
 import time
 from collections.abc import Callable
 from multiprocessing.connection import Connection
@@ -146,7 +147,9 @@ class LoopServer:
                 self.answer(self.conn.recv())
             for _ in range(CALLS_PER_CHUNK):  # those that come before the next tick
                 remaining_s = wake_s - time.perf_counter()
-                if not remaining_s > 0.0 or not self.conn.poll(remaining_s):
+                # select's timeout is in µs (Connection.poll rounds it up to whole ms: ticks
+                # then started up to 1 ms late)
+                if not remaining_s > 0.0 or not select.select([self.conn], [], [], remaining_s)[0]:
                     break
                 self.answer(self.conn.recv())
         except (EOFError, OSError):  # the service is gone: nobody may steer; stop

@@ -94,6 +94,7 @@ class LoopProcess:
                                  name="engine-loop", daemon=True)
         self._proc.start()
         child_conn.close()
+        self.pid = int(self._proc.pid or 0)
         self._lock = threading.Lock()
         self._next_id = 0
         self._poll_s = poll_s
@@ -109,7 +110,6 @@ class LoopProcess:
         self._gains: dict[str, ControllerGains] = {}
         ready = self._wait_ready(start_timeout_s)
         self.config = ready.config
-        self.pid = ready.pid
         self.chunk_period_s = ready.chunk_period_s
         self.driver = LoopDriverView(self, dict(ready.driver), ready.sample_period_s)
 
@@ -172,8 +172,8 @@ class LoopProcess:
             self._proc.join(0.5)
             code = self._proc.exitcode
             how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-            self._dead = (f"the control loop's process ({self.pid if hasattr(self, 'pid') else '?'}) "
-                          f"ended ({how}): the axes are stopped; restart the service")
+            self._dead = (f"the control loop's process ({self.pid}) ended ({how}): the axes are "
+                          "stopped; restart the service")
 
     # -- the control surface (Engine's) ----------------------------------------------------------
     def stop(self) -> None:
