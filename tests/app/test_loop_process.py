@@ -117,6 +117,23 @@ def test_gains_are_checked_off_the_loop_and_used_in_its_process(prig: Rig) -> No
     engine.set_gains("pan", current)
 
 
+def test_tracking_presets_and_gains_routes_reach_the_loops_process(prig: Rig) -> None:
+    release_all(prig)
+    r = prig.client.put(f"{API}/tracking", headers=prig.h("operator"), json={"enabled": True})
+    assert r.status_code == 200 and r.json()["tracking"] is True
+    assert status(prig)["tracking"] is True
+    r = prig.client.put(f"{API}/tracking", headers=prig.h("operator"), json={"enabled": False})
+    assert r.status_code == 200 and r.json()["tracking"] is False
+    assert prig.client.put(f"{API}/presets/door", headers=prig.h("operator"),
+                           json={"pan_deg": -15.0, "tilt_deg": 4.0}).status_code == 200
+    r = prig.client.post(f"{API}/presets/door/recall", headers=prig.h("operator"))
+    assert r.status_code == 200 and r.json()["mode"] == "manual"
+    assert poll(lambda: abs(status(prig)["pan_deg"] + 15.0) < 0.2, 6.0), status(prig)
+    r = prig.client.get(f"{API}/axes/pan/gains", headers=prig.h("viewer"))
+    assert r.status_code == 200 and r.json()["margins"]["acceptable"] is True
+    release_all(prig)
+
+
 def test_telemetry_frames_over_websocket(prig: Rig) -> None:
     with prig.client.websocket_connect("/api/v1/telemetry", headers=prig.h("viewer")) as ws:
         assert ws.receive_json()["type"] == "hello"
@@ -143,22 +160,17 @@ def test_a_latched_fault_shows_refuses_moves_and_an_engineer_clears_it(prig: Rig
     assert poll(lambda: status(prig)["mode"] != "fault", 3.0)
 
 
-def _gone(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/status").read_text()
-    except FileNotFoundError:
-        return True
-    return "State:\tZ" in state
-
-
-def test_a_killed_loop_process_is_a_fault_and_the_service_keeps_serving(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("sig", "how"), [(signal.SIGKILL, "killed by signal 9"),
+                                          (signal.SIGTERM, "exit code 0")], ids=["SIGKILL", "SIGTERM"])
+def test_a_killed_loop_process_is_a_fault_and_the_service_keeps_serving(
+        tmp_path: Path, sig: int, how: str) -> None:
     for rig in make_rig(tmp_path, loop_process=True):
         faulted = lambda rig=rig: (st := status(rig))["mode"] == "fault" and st  # noqa: E731
         pid = status(rig)["driver"]["loop_process"]["pid"]
-        os.kill(pid, signal.SIGKILL)
+        os.kill(pid, sig)
         s = poll(faulted, 5.0)
         assert s, f"no fault after the loop's process was killed: {status(rig)}"
-        assert any("killed by signal 9" in f for f in s["faults"]), s["faults"]
+        assert any(how in f for f in s["faults"]), s["faults"]
         assert s["driver"]["loop_process"]["state"] == "ended"
         r = rig.client.put(f"{API}/pointing", headers=rig.h("operator"),
                            json={"pan_deg": 1.0, "tilt_deg": 0.0})

@@ -12,7 +12,9 @@ snapshot, status and timing to the shared block (:mod:`tracker.loop_process.shar
 
 Safety stays here: the engine checks every target and rate against its soft limits and the
 driver its own; when the service's end of the pipe closes (the service died or stopped) the loop
-stops, the driver is disabled (the axes get 0 V) and closed, and the process exits.
+stops, the driver is disabled (the axes get 0 V) and closed, and the process exits. SIGTERM
+stops it the same way; SIGINT (a Ctrl-C in the service's terminal reaches the whole process
+group) is ignored: the service decides when its loop stops.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import inspect
 import math
 import os
 import select
+import signal
 import time
 from collections.abc import Callable
 from multiprocessing.connection import Connection
@@ -159,6 +162,8 @@ class LoopServer:
 
 def serve(conn: Connection, build: Callable[[Any], Engine], arg: Any, shm_name: str) -> None:
     """The process's body: build, answer, run, stop the axes, exit."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _exit)  # before the loop runs; then it stops the loop
     shared = SharedLoop.attach(shm_name)
     try:
         engine = build(arg)
@@ -177,12 +182,21 @@ def serve(conn: Connection, build: Callable[[Any], Engine], arg: Any, shm_name: 
     try:
         run = server.serve_until_run()
         if run is not None:
-            asyncio.run(engine.run(realtime=bool(run.get("realtime", True)),
-                                   duration_s=run.get("duration_s"), on_chunk=server.after_chunk))
+            asyncio.run(_run(engine, server, run))
             server.publish_status()
     finally:
         stop_axes(engine)
         shared.close()
+
+
+def _exit(signum: int, frame: Any) -> None:  # noqa: ANN401 - a signal handler
+    raise SystemExit(0)
+
+
+async def _run(engine: Engine, server: LoopServer, run: dict[str, Any]) -> None:
+    asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, engine.stop)
+    await engine.run(realtime=bool(run.get("realtime", True)), duration_s=run.get("duration_s"),
+                     on_chunk=server.after_chunk)
 
 
 def stop_axes(engine: Engine) -> None:
