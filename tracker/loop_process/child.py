@@ -23,7 +23,6 @@ import asyncio
 import gc
 import inspect
 import math
-import os
 import select
 import signal
 import time
@@ -178,7 +177,7 @@ def serve(conn: Connection, build: Callable[[Any], Engine], arg: Any, shm_name: 
     conn.send(Ready(engine.config, engine.driver.sample_period_s,
                     max(1, round(engine.config.chunk_s / engine.driver.sample_period_s))
                     * engine.driver.sample_period_s,
-                    driver_description(engine), os.getpid()))
+                    driver_description(engine)))
     try:
         run = server.serve_until_run()
         if run is not None:

@@ -86,4 +86,3 @@ class Ready:
     sample_period_s: float
     chunk_period_s: float
     driver: Mapping[str, Any]  # what GET /status shows about the driver
-    pid: int
