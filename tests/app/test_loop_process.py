@@ -160,6 +160,26 @@ def test_a_latched_fault_shows_refuses_moves_and_an_engineer_clears_it(prig: Rig
     assert poll(lambda: status(prig)["mode"] != "fault", 3.0)
 
 
+def test_a_stalled_loop_refuses_calls_at_once_and_recovers(prig: Rig) -> None:
+    release_all(prig)
+    pid = status(prig)["driver"]["loop_process"]["pid"]
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        assert poll(lambda: status(prig)["loop"]["last_tick_ms_ago"] > 2500.0, 6.0)  # health_stall_s 2
+        t0 = time.monotonic()
+        r = prig.client.put(f"{API}/pointing", headers=prig.h("operator"),
+                            json={"pan_deg": 2.0, "tilt_deg": 0.0})
+        assert r.status_code == 503 and "stalled" in r.text
+        assert time.monotonic() - t0 < 1.0, "the refusal waited for the call's time-out"
+        assert prig.client.get(f"{API}/health").status_code == 503
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    assert poll(lambda: prig.client.get(f"{API}/health").status_code == 200, 5.0)
+    r = prig.client.put(f"{API}/pointing", headers=prig.h("operator"), json={"pan_deg": 2.0, "tilt_deg": 0.0})
+    assert r.status_code == 200, r.text
+    release_all(prig)
+
+
 @pytest.mark.parametrize(("sig", "how"), [(signal.SIGKILL, "killed by signal 9"),
                                           (signal.SIGTERM, "exit code 0")], ids=["SIGKILL", "SIGTERM"])
 def test_a_killed_loop_process_is_a_fault_and_the_service_keeps_serving(

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import multiprocessing as mp
 import threading
 import time
@@ -43,6 +44,7 @@ from tracker.telemetry import EngineStatus, TelemetrySubscription
 from tracker.workbench.measurements.data import Measurement
 
 CALL_TIMEOUT_S = 5.0
+STALL_S = 1.0  # a running loop without a tick for this long answers no call: refused at once
 POLL_S = 0.005
 
 
@@ -144,10 +146,17 @@ class LoopProcess:
     # -- calls over the pipe -------------------------------------------------------------------
     def call(self, method: str, *args: Any, timeout_s: float = CALL_TIMEOUT_S, **kwargs: Any) -> Any:  # noqa: ANN401
         """Run ``method`` of the loop's command table between two chunks and return its value
-        (or raise its error). DriverFault when the process is gone or does not answer."""
+        (or raise its error). DriverFault when the process is gone or does not answer, and at
+        once when its loop is stalled (a call would hold the caller, the web's event loop, for
+        ``timeout_s``)."""
         with self._lock:
             if self._dead is not None:
                 raise DriverFault(self._dead)
+            if self._running and method != "stop":
+                age_s = self._shared.read_timing(time.perf_counter()).last_tick_age_s
+                if math.isfinite(age_s) and age_s > STALL_S:
+                    raise DriverFault(f"the control loop is stalled (no tick for {age_s:.1f} s): "
+                                      f"{method} refused")
             self._next_id += 1
             call_id = self._next_id
             try:
