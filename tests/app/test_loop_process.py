@@ -200,3 +200,22 @@ def test_a_killed_loop_process_is_a_fault_and_the_service_keeps_serving(
         assert rig.client.get(f"{API}/presets", headers=rig.h("viewer")).status_code == 200
         with pytest.raises(DriverFault):
             svc_of(rig).engine.release()
+
+
+def test_stored_model_gains_and_tracking_reach_the_loops_process_at_restart(tmp_path: Path) -> None:
+    """The service restores its stored settings through the pipe before the loop's first tick."""
+    from .test_restart import change_everything
+
+    for rig in make_rig(tmp_path, loop_process=True):
+        before = change_everything(rig)  # a model (designed in the service), gains, tracking on
+        engine = svc_of(rig).engine
+        assert engine.call("model", "pan").effects == ("offset",)
+        assert engine.call("gains", "tilt") == before["tilt_gains"]
+    for rig in make_rig(tmp_path, loop_process=True):
+        engine = svc_of(rig).engine
+        model = engine.call("model", "pan")  # what the loop's process holds, not the proxy's copy
+        assert model.effects == ("offset",)
+        assert model.params == pytest.approx(before["pan_model"].params)
+        assert engine.call("gains", "pan") == before["pan_gains"]
+        assert engine.call("gains", "tilt") == before["tilt_gains"]
+        assert status(rig)["tracking"] is True and not status(rig)["settings_warnings"]
