@@ -32,6 +32,18 @@ def build_twin(chunk_s: float) -> Engine:
     return Engine(SimDriver(), EngineConfig(chunk_s=chunk_s))
 
 
+def build_refused(rig_file: str) -> Engine:
+    """A build that fails in the loop's process, as a bad rig file does."""
+    raise ConfigError(f"rig file {rig_file}: line 3: 'inertia.J' is -1 (must be > 0)")
+
+
+def test_a_build_refused_in_the_loops_process_is_raised_in_the_service_as_is() -> None:
+    from tracker.loop_process.proxy import LoopProcess
+
+    with pytest.raises(ConfigError, match=r"rig file bad.json: line 3: 'inertia.J' is -1"):
+        LoopProcess(build_refused, "bad.json")
+
+
 def test_a_carried_error_keeps_its_type_message_and_figures() -> None:
     exc = CarriedError.of(ModelRefused("pan model refused: k-step error 3x", {"ratio": 3.0})).rebuild()
     assert type(exc) is ModelRefused and isinstance(exc, ConfigError)
