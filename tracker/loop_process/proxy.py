@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import math
 import multiprocessing as mp
 import threading
@@ -301,9 +302,7 @@ class LoopProcess:
             return LoopTiming(self.chunk_period_s, 0, 0.0, 0.0, 0.0, 0, 0, False, False)
         t = self._shared.read_timing(time.perf_counter())
         if self._dead is not None or not self._proc.is_alive():
-            return LoopTiming(t.period_s, t.ticks, t.last_lateness_s, t.max_lateness_s,
-                              t.mean_lateness_s, t.overruns, t.restarts, False, t.in_thread,
-                              t.priority, t.last_tick_age_s, t.gap_bounds_s, t.gap_counts, t.gap_sum_s)
+            return dataclasses.replace(t, running=False)
         return t
 
     def describe_process(self) -> dict[str, Any]:
