@@ -113,7 +113,23 @@ def check_settings(settings: Settings) -> None:
 
 
 def build_engine(settings: Settings) -> Any:
-    """The engine on the configured driver, with the service's phase-margin floor."""
+    """The engine on the configured driver, with the service's phase-margin floor; with
+    ``loop_process`` (the twin) the engine in a process of its own behind a
+    :class:`tracker.loop_process.proxy.LoopProcess` with the same surface."""
+    if settings.loop_process:
+        from tracker.drivers.spec import parse_driver_url
+
+        kind = parse_driver_url(settings.driver).kind
+        if kind == "sim":
+            from tracker.loop_process.proxy import LoopProcess
+
+            return LoopProcess(build_local_engine, settings)
+        log.warning("loop_process: the %s driver stays in the service's process (the twin only)", kind)
+    return build_local_engine(settings)
+
+
+def build_local_engine(settings: Settings) -> Any:
+    """The engine on the configured driver in this process (the loop's process calls it too)."""
     from tracker.engine import Engine, EngineConfig
 
     config = EngineConfig(min_phase_margin_deg=settings.min_phase_margin_deg,

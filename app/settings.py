@@ -98,6 +98,13 @@ class Settings(BaseSettings):
         0, ge=0, le=99,
         description="SCHED_FIFO priority of the control loop's thread on Linux (0: normal scheduling); "
                     "needs CAP_SYS_NICE (systemd: CPUSchedulingPolicy/LimitRTPRIO), ignored if refused")
+    loop_process: bool = Field(
+        False,
+        description="run the control loop and the simulated rig in a process of their own (a "
+                    "spawned child at control_loop_priority whose only Python thread is the loop; "
+                    "calls over a pipe, telemetry and status in shared memory), so no thread of "
+                    "the service can hold up a tick (docs/console.md); driver = 'sim' only, a "
+                    "camera or serial rig stays in the service's process")
     service_threads_priority: int = Field(
         0, ge=0, le=98,
         description="SCHED_FIFO priority of the service's other threads (web, telemetry; 0: normal "

@@ -7,6 +7,7 @@ late by more than 2 ms and overruns, idle and under load.
                                           [--viewers 50] [--rest 600] [--diagnoses 2]
                                           [--priority 50] [--service-priority 10]
                                           [--camera [--camera-rate-hz 25]] [--alone]
+                                          [--loop-process]
 
 Ticks: the largest gap between tick starts, each tick's lateness against its due time (the
 loop's deadlines replayed: p99, max, how many over 2 ms), overruns, the longest tick body; the
@@ -14,7 +15,10 @@ service's garbage collections. ``--camera`` steers ``tracker camera-emulator`` (
 process) over VISCA on UDP and adds the command cycles' gaps and missed periods; ``--alone``
 runs the same engine on the twin alone in a process of its own, under the same load (what a
 loop in its own process would get); ``--web-fifo N`` (diagnostic) moves the service's other
-threads into SCHED_FIFO N from outside at the load's start.
+threads into SCHED_FIFO N from outside at the load's start. ``--loop-process`` runs the
+service with ``loop_process = true`` (the twin's engine in a spawned process of its own): its
+ticks are time-stamped there by the same probe, loaded through a ``sitecustomize`` in the
+spawned processes.
 
 ``--tree`` runs the service from another checkout (e.g. main, for the figures before); the
 service gets ``TRACKER_CONTROL_CHUNK_MS`` (a tree without that setting ignores it). Control
@@ -109,6 +113,18 @@ async def main():
     await engine.run(realtime=True)
 asyncio.run(main())
 _dump()
+"""
+
+
+# --loop-process: the probe in the spawned processes (the loop's process; the workers record no
+# tick), dumped on SIGUSR1 to BENCH_TICKS.<pid>.
+CHILD_PROBE = """
+import os, sys
+if os.environ.get("BENCH_TICKS") and "--multiprocessing-fork" in sys.argv:
+    os.environ["BENCH_TICKS"] = os.environ["BENCH_TICKS"] + "." + str(os.getpid())
+    exec(open(os.environ["BENCH_PROBE"]).read().split("if __name__")[0])
+    import signal
+    signal.signal(signal.SIGUSR1, lambda *_: _dump())
 """
 
 
@@ -350,6 +366,7 @@ async def bench(args: argparse.Namespace, api: str, ws_url: str, key: str, csv: 
     async with httpx.AsyncClient(timeout=30.0) as c:
         status = (await c.get(f"{api}/status", headers=h)).json()
         out["status_loop"], out["status_driver"] = status.get("loop"), status.get("driver")
+        out["status_faults"] = status.get("faults")
     stop.set()
     await asyncio.gather(*tasks, return_exceptions=True)
     try:  # let the service finish its diagnosis before it is stopped (bounded)
@@ -374,6 +391,8 @@ def main() -> int:
         help="diagnostic: SCHED_FIFO priority for the service's other threads at the load's start")
     parser.add_argument("--alone", action="store_true",
                         help="also run the same engine alone in a process of its own, under the same load")
+    parser.add_argument("--loop-process", action="store_true",
+                        help="loop_process = true: the twin's engine in a process of its own")
     parser.add_argument("--camera", action="store_true",
                         help="steer an emulated PTZ camera (tracker camera-emulator, its own process) "
                              "over VISCA on UDP instead of the twin")
@@ -412,6 +431,10 @@ def main() -> int:
         }
         if args.spin_ms is not None:
             env["BENCH_SPIN_S"] = str(args.spin_ms / 1e3)
+        if args.loop_process:
+            env["TRACKER_LOOP_PROCESS"] = "true"
+            env["BENCH_PROBE"] = str(probe)
+            (Path(tmp) / "sitecustomize.py").write_text(CHILD_PROBE)
         if args.service_priority:  # a tree without the setting would refuse it
             env["TRACKER_SERVICE_THREADS_PRIORITY"] = str(args.service_priority)
         emulator: subprocess.Popen[bytes] | None = None
@@ -431,6 +454,7 @@ def main() -> int:
             start_new_session=True,  # its worker processes go with it if it must be killed
         )
         api = f"http://127.0.0.1:{port}/api/v1"
+        loop_pid: int | None = None
         try:
             end = time.monotonic() + 180.0
             while True:
@@ -444,6 +468,10 @@ def main() -> int:
                 time.sleep(0.2)
             key = (Path(tmp) / "data" / "admin.key").read_text().strip()
             args.pid = proc.pid
+            if args.loop_process:
+                st = httpx.get(f"{api}/status", headers={"X-API-Key": key}, timeout=10.0).json()
+                loop_pid = int(st["driver"]["loop_process"]["pid"])
+                ticks_file = Path(f"{ticks_file}.{loop_pid}")
             if args.alone:
                 (Path(tmp) / "alone.py").write_text(ALONE)
                 alone = subprocess.Popen(
@@ -461,6 +489,8 @@ def main() -> int:
                     task.cancel()
                 loop.close()
         finally:
+            if loop_pid is not None:  # the loop's process writes its ticks (the service none)
+                os.kill(loop_pid, signal.SIGUSR1)
             proc.send_signal(signal.SIGUSR1)  # the probe writes the ticks now: the service may
             end = time.monotonic() + 30.0     # not stop in time with a diagnosis still running
             while not ticks_file.exists() and time.monotonic() < end and proc.poll() is None:
@@ -487,7 +517,8 @@ def main() -> int:
     period = args.chunk_ms / 1e3
     load_avg = os.getloadavg()
     print(
-        f"tree {args.tree}, {'camera' if args.camera else 'twin'}, tick {args.chunk_ms:g} ms, "
+        f"tree {args.tree}, {'camera' if args.camera else 'twin'}"
+        f"{' in its own process' if args.loop_process else ''}, tick {args.chunk_ms:g} ms, "
         f"priority {args.priority}, service threads {args.service_priority}, spin {args.spin_ms} ms, "
         f"nice {args.nice}, "
         f"{args.viewers} viewers, "
@@ -528,6 +559,8 @@ def main() -> int:
     print(f"load  garbage collections: {json.dumps({k: round(v, 2) for k, v in gf.items()})}")
     ff = frame_figures(res["viewers"], t0, t1)
     print(f"load  telemetry frames: {json.dumps({k: round(v, 2) for k, v in ff.items()})}")
+    if res.get("status_faults"):
+        print(f"/status faults: {res['status_faults']}")
     if res["status_loop"] is not None:
         print(f"/status loop (since start): {json.dumps(res['status_loop'])}")
     if args.camera and res["status_driver"] is not None:

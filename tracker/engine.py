@@ -38,6 +38,7 @@ from __future__ import annotations
 import asyncio
 import math
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -283,13 +284,18 @@ class Engine:
         """The gains in use on ``axis``."""
         return self._axis(axis).gains
 
-    def set_gains(self, axis: str, gains: ControllerGains) -> DesignReport:
+    def set_gains(
+        self, axis: str, gains: ControllerGains, report: DesignReport | None = None
+    ) -> DesignReport:
         """Use ``gains`` on ``axis`` if its linearised loop is stable with enough phase margin.
 
-        Raises ConfigError carrying the computed margins otherwise.
+        ``report`` is :func:`check_gains`' result for the axis's current model, computed by the
+        caller off the loop (~0.1 s of python-control; :mod:`tracker.loop_process`); computed
+        here when None. Raises ConfigError carrying the computed margins otherwise.
         """
         ax = self._axis(axis)
-        report = check_gains(ax.model, gains, self.config.min_phase_margin_deg)
+        if report is None:
+            report = check_gains(ax.model, gains, self.config.min_phase_margin_deg)
         if not report.ok:
             raise ConfigError(f"{axis} gains refused: {report.describe()}")
         cp = ax.pack(ax.model, gains)
@@ -316,20 +322,24 @@ class Engine:
         return check_model(axis, self.recent_motion(axis), model, self.model(axis))
 
     def set_model(
-        self, axis: str, model: AxisModel, check: ModelCheck | None = None, **options: Any
+        self, axis: str, model: AxisModel, check: ModelCheck | None = None,
+        design: ControllerDesign | None = None, **options: Any
     ) -> ControllerDesign:
         """Redesign ``axis``'s controller on ``model`` (e.g. one the workbench fitted) and use it.
 
         ``model`` must first predict the axis's recent motion: ``check`` is
         :meth:`check_model`'s result (computed here when None; a caller may compute it off the
         loop's thread); ModelRefused (a ConfigError with the figures) when it does not.
-        ``options`` go to the design (e.g. ``crossover_hz=17.0``). The limits, shaping and
+        ``design`` is :func:`design_controller`'s result on ``model`` (the engine's controller),
+        computed by the caller off the loop (~0.2 s; :mod:`tracker.loop_process`); designed here
+        when None, with ``options`` (e.g. ``crossover_hz=17.0``). The limits, shaping and
         controller name stay; refused (ConfigError with the margins) like :meth:`set_gains`
         when the new design misses the phase-margin floor, and (ConfigError) when the guard
         cannot take the model (a belt too soft for the limits). Nothing changes when refused.
         """
         ax = self._axis(axis)
-        design = design_controller(model, self.config.controller, axis=axis, **options)
+        if design is None:
+            design = design_controller(model, self.config.controller, axis=axis, **options)
         if not design.report.ok or design.report.phase_margin_deg < self.config.min_phase_margin_deg:
             raise ConfigError(f"{axis} redesign refused: {design.report.describe()}")
         cp = ax.pack(model, design.gains)
@@ -398,9 +408,16 @@ class Engine:
         return "hold"
 
     # -- the loop ---------------------------------------------------------------------------
-    async def run(self, realtime: bool = True, duration_s: float | None = None) -> None:
+    async def run(
+        self,
+        realtime: bool = True,
+        duration_s: float | None = None,
+        on_chunk: Callable[[TelemetrySnapshot], None] | None = None,
+    ) -> None:
         """Run until ``stop()`` or ``duration_s`` of engine time have passed (``realtime``: in
-        the engine's own thread, paced to the wall clock; else on the event loop, at once)."""
+        the engine's own thread, paced to the wall clock; else on the event loop, at once).
+        ``on_chunk(snapshot)`` runs after each chunk in the loop's thread, before the next is due
+        (a loop in its own process takes its commands there: :mod:`tracker.loop_process`)."""
         if self._running:
             raise ConfigError("engine is already running")
         self._running = True
@@ -413,17 +430,21 @@ class Engine:
         end = None if duration_s is None else self._t + float(duration_s)
         try:
             if realtime:
-                await self._run_paced(end)
+                await self._run_paced(end, on_chunk)
             else:
                 while not self._stop and (end is None or self._t < end - 1e-12):
-                    self.step_chunk()
+                    snap = self.step_chunk()
+                    if on_chunk is not None:
+                        on_chunk(snap)
                     await asyncio.sleep(0)
         finally:
             self._running = False
             for sub in list(self._subscribers):
                 sub.put(None)
 
-    async def _run_paced(self, end: float | None) -> None:
+    async def _run_paced(
+        self, end: float | None, on_chunk: Callable[[TelemetrySnapshot], None] | None = None
+    ) -> None:
         """The chunks in a :class:`PacedLoop` thread; returns (or raises) when it ends."""
         loop = asyncio.get_running_loop()
         done: asyncio.Future[None] = loop.create_future()
@@ -431,7 +452,9 @@ class Engine:
         def step() -> bool:
             if self._stop or (end is not None and self._t >= end - 1e-12):
                 return False
-            self.step_chunk()
+            snap = self.step_chunk()
+            if on_chunk is not None:
+                on_chunk(snap)
             return True
 
         def finish(error: BaseException | None) -> None:
