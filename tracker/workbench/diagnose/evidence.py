@@ -11,6 +11,7 @@ import numpy as np
 from scipy import signal
 
 from tracker.plant.effects import CATALOGUE, Effect, generic_effects, get_effect, is_generic
+from tracker.plant.effects import ripple as ripple_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.breakaway import BreakAway
 from tracker.workbench.diagnose.kstep import Comparison
@@ -149,10 +150,13 @@ def describe(
             f"amplitude {p['gravity.torque']:.3g} N·m over a {np.ptp(th):.2f} rad range" + tail
         )
     if effect == "ripple":
+        why = ripple_effect.not_repeating(
+            sig.theta_rad[sig.use], ctx.base_reg.residual, p["ripple.cycles_per_rev"]
+        )
         return (
             f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.2f} cycles per revolution "
             f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
-            f"{p['ripple.amplitude']:.3g} N·m" + tail
+            f"{p['ripple.amplitude']:.3g} N·m" + (f"; {why}" if why else "") + tail
         )
     if effect == "stiction":
         e, tfrac = ctx.rest_share

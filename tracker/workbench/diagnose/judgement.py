@@ -15,6 +15,7 @@ from scipy import stats
 from tracker.errors import ConfigError
 from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_param
 from tracker.plant.effects import compliance as compliance_effect
+from tracker.plant.effects import ripple as ripple_effect
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.evidence import EvidenceContext
@@ -504,7 +505,12 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     nothing (its gain came from refitting the rest). A "belt" with a damping ratio of 1/√2 or
     more has no resonance peak, and one at or above a quarter of the sampling rate or the
     catalogue's bound cannot be resolved: both are the model's extra load state fitting noise.
+    A ripple must be seen to repeat: fitted on one half of the angles the run covers, it must
+    predict the other half (:func:`tracker.plant.effects.ripple.not_repeating`); else it is a
+    smooth torque of position, not a periodic one.
     """
+    if effect == "ripple":
+        return ripple_not_repeating(model, ctx) is None
     if effect == "delay":
         delay_s = model.params["delay.seconds"]
         timing_s = encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s)
@@ -519,6 +525,13 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
             and model.params["compliance.frequency"] < f_max
         )
     return True
+
+
+def ripple_not_repeating(model: AxisModel, ctx: EvidenceContext) -> str | None:
+    """Why the ripple of ``model`` is not seen to repeat over the run's angles, or None."""
+    sig = ctx.sig
+    n = float(model.params["ripple.cycles_per_rev"])
+    return ripple_effect.not_repeating(sig.theta_rad[sig.use], ctx.base_reg.residual, n)
 
 
 def negligible(effect: str, model: AxisModel, ctx: EvidenceContext | None = None) -> str | None:
