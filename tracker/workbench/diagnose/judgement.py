@@ -15,10 +15,9 @@ from scipy import stats
 from tracker.errors import ConfigError
 from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_param
 from tracker.plant.effects import compliance as compliance_effect
-from tracker.plant.effects import ripple as ripple_effect
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.evidence import EvidenceContext
+from tracker.workbench.diagnose.evidence import EvidenceContext, ripple_not_repeating
 from tracker.workbench.diagnose.kstep import (
     Comparison,
     HeldOutSearch,
@@ -510,7 +509,7 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     smooth torque of position, not a periodic one.
     """
     if effect == "ripple":
-        return ripple_not_repeating(model, ctx) is None
+        return ripple_not_repeating(float(model.params["ripple.cycles_per_rev"]), ctx) is None
     if effect == "delay":
         delay_s = model.params["delay.seconds"]
         timing_s = encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s)
@@ -525,13 +524,6 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
             and model.params["compliance.frequency"] < f_max
         )
     return True
-
-
-def ripple_not_repeating(model: AxisModel, ctx: EvidenceContext) -> str | None:
-    """Why the ripple of ``model`` is not seen to repeat over the run's angles, or None."""
-    sig = ctx.sig
-    n = float(model.params["ripple.cycles_per_rev"])
-    return ripple_effect.not_repeating(sig.theta_rad[sig.use], ctx.base_reg.residual, n)
 
 
 def negligible(effect: str, model: AxisModel, ctx: EvidenceContext | None = None) -> str | None:
