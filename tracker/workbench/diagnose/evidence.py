@@ -11,6 +11,7 @@ import numpy as np
 from scipy import signal
 
 from tracker.plant.effects import CATALOGUE, Effect, generic_effects, get_effect, is_generic
+from tracker.plant.effects import ripple as ripple_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.breakaway import BreakAway
 from tracker.workbench.diagnose.kstep import Comparison
@@ -108,6 +109,20 @@ def _resonance(ctx: EvidenceContext) -> tuple[float, float]:
     return float(f[band][i]), float(p[band][i] / (np.median(p[band]) or 1.0))
 
 
+def ripple_not_repeating(cycles_per_rev: float, ctx: EvidenceContext) -> str | None:
+    """Why a ripple of ``cycles_per_rev`` is not seen to repeat over the run's angles, or None
+    (:func:`tracker.plant.effects.ripple.not_repeating` on the baseline's residual torque).
+
+    With a belt or a dead band in the model the test does not apply: the ripple acts on the load
+    and reaches the motor's residual torque through the transmission's dynamics, which change its
+    amplitude with the speed (and so with where the axis moves); the simulation judges it there.
+    """
+    if ctx.model.has("compliance") or ctx.model.has("backlash"):
+        return None
+    sig = ctx.sig
+    return ripple_effect.not_repeating(sig.theta_rad[sig.use], ctx.base_reg.residual, cycles_per_rev)
+
+
 def describe(
     effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, params: Mapping[str, float]
 ) -> str:
@@ -149,10 +164,11 @@ def describe(
             f"amplitude {p['gravity.torque']:.3g} N·m over a {np.ptp(th):.2f} rad range" + tail
         )
     if effect == "ripple":
+        why = ripple_not_repeating(p["ripple.cycles_per_rev"], ctx)
         return (
             f"residual is periodic in θ with {d.get('cycles_per_rev', 0):.2f} cycles per revolution "
             f"(periodogram peak {d.get('peak_ratio', 0):.0f}× the median), amplitude "
-            f"{p['ripple.amplitude']:.3g} N·m" + tail
+            f"{p['ripple.amplitude']:.3g} N·m" + (f"; {why}" if why else "") + tail
         )
     if effect == "stiction":
         e, tfrac = ctx.rest_share

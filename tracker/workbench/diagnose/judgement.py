@@ -17,7 +17,7 @@ from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_
 from tracker.plant.effects import compliance as compliance_effect
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.evidence import EvidenceContext
+from tracker.workbench.diagnose.evidence import EvidenceContext, ripple_not_repeating
 from tracker.workbench.diagnose.kstep import (
     Comparison,
     HeldOutSearch,
@@ -504,7 +504,12 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     nothing (its gain came from refitting the rest). A "belt" with a damping ratio of 1/√2 or
     more has no resonance peak, and one at or above a quarter of the sampling rate or the
     catalogue's bound cannot be resolved: both are the model's extra load state fitting noise.
+    A ripple must be seen to repeat: fitted on one half of the angles the run covers, it must
+    predict the other half (:func:`tracker.plant.effects.ripple.not_repeating`); else it is a
+    smooth torque of position, not a periodic one.
     """
+    if effect == "ripple":
+        return ripple_not_repeating(float(model.params["ripple.cycles_per_rev"]), ctx) is None
     if effect == "delay":
         delay_s = model.params["delay.seconds"]
         timing_s = encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s)
