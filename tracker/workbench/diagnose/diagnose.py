@@ -189,10 +189,10 @@ def diagnose(
     ]
     step(0.7)
     reconsider_backlash(rows, screens, ctx)
-    rank(rows, judge)
+    rank(rows, judge, ctx, screens)
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
     reconsider_backlash(rows, screens, ctx)  # a belt its refit by simulation rejected
-    rank(rows, judge)
+    rank(rows, judge, ctx, screens)
 
     significant = [r.effect for r in rows if r.significant]
     candidates = [_candidate(r, ctx, significant) for r in rows]

@@ -17,6 +17,7 @@ from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_
 from tracker.plant.effects import compliance as compliance_effect
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
+from tracker.workbench.diagnose.effect_search import screen_backlash
 from tracker.workbench.diagnose.evidence import EvidenceContext
 from tracker.workbench.diagnose.kstep import (
     Comparison,
@@ -420,7 +421,12 @@ def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: 
     )
 
 
-def rank(rows: list[Judged], judge: KStepJudge) -> None:
+def rank(
+    rows: list[Judged],
+    judge: KStepJudge,
+    ctx: EvidenceContext | None = None,
+    screens: Mapping[str, Screen] | None = None,
+) -> None:
     """Best first (in place); a bias torque ahead of its equivalent direction-dependent friction.
 
     Parsimony: a significant leader with more parameters than a significant look-alike (gravity
@@ -431,13 +437,21 @@ def rank(rows: list[Judged], judge: KStepJudge) -> None:
     Backlash is judged by the screening alone (the k-step prediction cannot see where the load
     sits in the dead band), so among the significant it is placed by the screening too: ahead of
     every significant candidate whose torque regression explains less of the held-out torque (a
-    delay or a belt imitates the late load at reversals, but explains less of it).
+    delay or a belt imitates the late load at reversals, but explains less of it), and whose
+    effect, once in the regression, leaves the dead band its evidence (:func:`_play_beyond`;
+    with ``ctx``).
     """
     rows.sort(key=Judged.rank_key)
     bl = next((i for i, r in enumerate(rows) if r.effect == "backlash" and r.significant), None)
     if bl is not None:
         ahead = next(
-            (i for i in range(bl) if rows[i].screen.gain_cv < rows[bl].screen.gain_cv), None
+            (
+                i
+                for i in range(bl)
+                if rows[i].screen.gain_cv < rows[bl].screen.gain_cv
+                and (ctx is None or _play_beyond(rows[bl], rows[i], screens or {}, ctx))
+            ),
+            None,
         )
         if ahead is not None:
             rows.insert(ahead, rows.pop(bl))
@@ -533,6 +547,16 @@ def _explains_more(rich: Judged, simple: Judged, judge: KStepJudge) -> bool:
     f = ((q.sse - r.sse) / extra) / (r.sse / dof)
     better_torque = float(stats.f.sf(f, extra, dof)) < MAX_SCREEN_P
     return better_torque and rich.score.sse < simple.score.sse
+
+
+def _play_beyond(bl: Judged, other: Judged, screens: Mapping[str, Screen], ctx: EvidenceContext) -> bool:
+    """Whether the dead band still passes its screening bar with ``other``'s effect in the
+    regression: a missing torque the dead band's coasting load partly imitates (an unbalance
+    that the load's late arrival at each reversal follows) leaves it nothing of its own."""
+    if other.effect in ("backlash", "compliance"):
+        return True
+    scr = screen_backlash(ctx.design, ctx.model, other.screen.structure, other.screen.regression)
+    return _backlash_significant(scr, screens, bl.cmp)
 
 
 def _versus(rich: Judged, simple: Judged, judge: KStepJudge) -> tuple[float, float]:
@@ -707,7 +731,7 @@ def _backlash_significant(scr: Screen, screens: Mapping[str, Screen], cmp: Compa
     load without friction coasts in the gap), so the k-step judgement cannot confirm backlash
     even for the true model. The screening reconstructs the load through the whole run instead;
     it must explain a large share of the torque beyond what a play of a count or two explains
-    (the encoder's flicker at reversals: see ``effect_search._screen_backlash``), more of the
+    (the encoder's flicker at reversals: see ``effect_search.screen_backlash``), more of the
     held-out torque than a belt would, and the simulation must not be made significantly worse
     by it (the k-step error's t no lower than ``-MAX_BACKLASH_KSTEP_WORSE_T``: a bar on the
     error's own scatter, not on its size, which a short log's few windows make large either way).
