@@ -160,3 +160,17 @@ def test_a_dead_band_that_only_follows_a_missing_unbalance_does_not_lead() -> No
     assert second is not None and second.verdict == "gravity", [
         (c.effect, c.significant) for c in second.candidates
     ]
+
+
+def test_a_bias_under_gravity_the_run_cannot_resolve_is_said_so() -> None:
+    """Seed 6006: a 1 kHz log with Coulomb friction 73 mN·m one way and 113 the other and an
+    unbalance of 57 mN·m, over 0.77 rad. The first round names gravity; fitted alone, gravity's
+    phase takes up the 20 mN·m bias (over so short a travel gravity is a level and a slope, and
+    only the torque's curvature tells a bias from a shifted phase). The second round cannot name
+    the bias (fitted with gravity it is -12 ± 5 mN·m and the simulation prefers none), and says so
+    instead of calling the model adequate without a word."""
+    truth, first, second = _two_rounds("coulomb_asymmetry+gravity-001", FINAL_DEV_SEED)
+    assert sorted(truth["hidden"]) == ["coulomb_asymmetry", "gravity"]
+    assert first.verdict == "gravity"
+    assert second is not None
+    assert any(n.startswith("a bias torque on top of gravity") for n in second.notes), second.notes
