@@ -570,8 +570,8 @@ def _look_alike(rich: Judged, simple: Judged) -> bool:
 def _versus(rich: Judged, simple: Judged, judge: KStepJudge) -> tuple[float, float]:
     """How much better ``rich`` predicts than its look-alike ``simple`` on held-out halves.
 
-    Each is refitted by simulation (its own parameters with the base's J, b, Fc, which trade
-    with them) on one half of the run (alternating 1 s blocks) and scored on the other: over a
+    Each is refitted by simulation (its own parameters, :data:`LOOK_ALIKE_REFIT`) on one half of
+    the run (alternating 1 s blocks) and scored on the other: over a
     short travel gravity is a bias torque plus a slope, and what the log determines is whether
     that slope (and curvature) predicts data it was not fitted on. Returns the share of the
     simple one's held-out error removed, per half; remembered on ``rich`` (against the first
