@@ -613,7 +613,8 @@ def look_alike_notes(rows: list[Judged]) -> tuple[str, ...]:
             if min(g0, g1) >= MIN_HELD_OUT_GAIN:
                 notes.append(f"{r.effect} rather than {simple}: {figures}")
             elif max(g0, g1) <= -MIN_HELD_OUT_GAIN:
-                notes.append(f"{simple} rather than {r.effect}: {figures}")
+                # Not a verdict of its own: gravity may still lead by its torque regression.
+                notes.append(f"the held-out halves favour {simple} over {r.effect}: {figures}")
             else:
                 experiment = get_effect(r.effect).experiment or ""
                 notes.append(
