@@ -32,6 +32,7 @@ from tracker.workbench.diagnose.judgement import (
     Judged,
     finding,
     judge_candidate,
+    look_alike_notes,
     negligible,
     rank,
     reconsider_backlash,
@@ -188,10 +189,10 @@ def diagnose(
     ]
     step(0.7)
     reconsider_backlash(rows, screens, ctx)
-    rank(rows, judge)
+    rank(rows, judge, ctx, screens)
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
     reconsider_backlash(rows, screens, ctx)  # a belt its refit by simulation rejected
-    rank(rows, judge)
+    rank(rows, judge, ctx, screens)
 
     significant = [r.effect for r in rows if r.significant]
     candidates = [_candidate(r, ctx, significant) for r in rows]
@@ -199,6 +200,9 @@ def diagnose(
         candidates.append(_quantization_candidate(ctx, current.fit_percent, base_score))
     verdict = candidates[0].effect if candidates and candidates[0].significant else None
     notes = notes_for(candidates, ctx, verdict)
+    told = look_alike_notes(rows)
+    if told:
+        notes = tuple(n for n in notes if "look alike over" not in n) + told
     small = [(r.effect, negligible(r.effect, r.model, ctx)) for r in rows if r.passed and not r.significant]
     notes += tuple(f"{effect} is detectable but small: {why}" for effect, why in small if why)
     far_off = refit_score.sse < current.sse and current.sse > FAR_OFF_RATIO * refit_score.sse

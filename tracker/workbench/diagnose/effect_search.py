@@ -43,7 +43,7 @@ MAX_DELAY_S = 0.1
 RIPPLE_MAX_CYCLES = 500
 # A play as narrow as the spread of the reading is what the reading flickering at a reversal (a
 # count either way, or the angle noise) looks like to the dead-band reconstruction: it is the
-# null a real dead band must beat (see :func:`_screen_backlash`). The spread is at least this many
+# null a real dead band must beat (see :func:`screen_backlash`). The spread is at least this many
 # counts, and at least this many standard deviations of the reading about the low-passed angle.
 FLICKER_MIN_COUNTS = 2.0
 FLICKER_SIGMAS = 6.0  # ±3σ
@@ -170,7 +170,7 @@ def screen_missing_effects(
                 effect, design, model, base, base_reg, st, 2, {"limit": lim, "above": above}, reg
             )
         elif effect == "backlash":
-            out[effect] = _screen_backlash(design, model, base, base_reg)
+            out[effect] = screen_backlash(design, model, base, base_reg)
         elif effect == "compliance":
             out[effect] = _screen_compliance(design, model, base, base_reg)
     for effect in generic_effects():
@@ -220,7 +220,7 @@ def _screen_ripple(design: TorqueDesign, model: AxisModel, base: Structure, base
     return screen("ripple", design, model, base, base_reg, st, 3, detail, reg)
 
 
-def _screen_backlash(design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression) -> Screen:
+def screen_backlash(design: TorqueDesign, model: AxisModel, base: Structure, base_reg: Regression) -> Screen:
     """Backlash: the dead band's width by the regression with the load reconstructed behind it.
 
     A play as wide as the reading's flicker explains much of the residual torque of any log (the
@@ -319,4 +319,4 @@ def screen_generic(
     return replace(scr, stderr={**scr.stderr, **generic.held_stderr(design, st, scr.regression, effect, ne)})
 
 
-__all__ = ["SCREENED", "ripple_periodogram", "screen_generic", "screen_missing_effects"]
+__all__ = ["SCREENED", "ripple_periodogram", "screen_backlash", "screen_generic", "screen_missing_effects"]

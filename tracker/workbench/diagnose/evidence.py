@@ -320,6 +320,19 @@ def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: st
             f"gravity and a bias torque look alike over the {np.ptp(ctx.sig.theta_rad):.2f} rad this run "
             "covers; " + EXPERIMENTS["gravity"]
         )
+    bias = by.get("offset")
+    span = float(np.ptp(ctx.sig.theta_rad))
+    if ctx.model.has("gravity") and bias is not None and not bias.significant and span < 1.5:
+        # Over a short travel gravity is a level and a slope; a bias (or a Coulomb asymmetry)
+        # on top of it only shows in the torque's curvature, which such a run barely resolves.
+        b = bias.params.get("offset.torque", 0.0)
+        se = bias.stderr.get("offset.torque", math.inf)
+        notes.append(
+            f"a bias torque on top of gravity (or direction-dependent Coulomb friction) is not resolved "
+            f"over the {span:.2f} rad this run covers: fitted together with gravity it comes out at "
+            f"{b:+.3g} ± {se:.2g} N·m, and gravity's phase takes up what the torque's curvature cannot "
+            "tell apart; " + EXPERIMENTS["gravity"]
+        )
     if verdict is not None and is_generic(verdict):
         alike = [e for e in ctx.confusions(verdict, sig_names) if e in sig_names]
         experiment = experiment_for(verdict)

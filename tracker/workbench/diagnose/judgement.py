@@ -17,6 +17,7 @@ from tracker.plant.effects import EffectNames, generic_effects, get_effect, get_
 from tracker.plant.effects import compliance as compliance_effect
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
+from tracker.workbench.diagnose.effect_search import screen_backlash
 from tracker.workbench.diagnose.evidence import EvidenceContext, ripple_not_repeating
 from tracker.workbench.diagnose.kstep import (
     Comparison,
@@ -55,6 +56,8 @@ MIN_DRIVE_DELAY_SAMPLES = 2.0
 MIN_SLIDING_WINDOWS = 20  # windows of steady sliding needed to tell a delay from pre-sliding lag
 MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-order system peaks below
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
+# Clip levels tried by simulation, named by the share of the run's samples each clips.
+CLIPPED_SHARES = (0.003, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.25)
 OVERWHELMING_P = 1e-10
 MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on each half of the run
 # A torque effect refitted by simulation jointly with the effects already in the model (second
@@ -68,6 +71,18 @@ MIN_HELD_OUT_GAIN = 0.05
 # A richer effect beats a simpler look-alike by simulation alone when it removes this share of
 # the simpler one's k-step error (half of it without the best blocks; some on each half).
 PARSIMONY_SIM_GAIN = 0.25
+# A torque of position with more parameters than a look-alike that is constant (gravity over a
+# short travel is a bias plus a slope): the richer one leads when, with both refitted by simulation
+# on one half of the run, it predicts the other half better by this share, on each half.
+POSITION_LOOK_ALIKES = {"gravity": ("offset", "coulomb_asymmetry")}
+LOOK_ALIKE_REFIT_EVALS = 30
+# What each refits on a half: its own parameters, and Coulomb friction for the asymmetry (which
+# splits it); the rest of the model keeps its values.
+LOOK_ALIKE_REFIT = {
+    "gravity": ("gravity",),
+    "offset": ("offset",),
+    "coulomb_asymmetry": ("coulomb_asymmetry", "coulomb"),
+}
 STICTION_RATIOS = (1.1, 1.25, 1.4, 1.6, 1.8, 2.0, 2.4)  # break-away / Coulomb tried by simulation
 STRIBECK_VELOCITIES = (0.02, 0.05, 0.1)  # rad/s
 DELAY_SAMPLES = (0.5, 1, 1.5, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64, 90)  # delays tried by simulation
@@ -94,6 +109,8 @@ class Judged:
     stderr: dict[str, float] = field(default_factory=dict)
     passed: bool = False  # passed the gates of size and agreement (before the physics check)
     established: str | None = None  # stiction: what the break-away from rest establishes alone
+    # Held-out gains (one per half of the run) over a simpler look-alike, by its name (rank()).
+    versus: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def rank_key(self) -> tuple[bool, float]:
         """Significant first, then by the k-step gain: the simulation is the judge.
@@ -229,6 +246,21 @@ def judge_candidate(
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
         screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN
+    if effect == "saturation":
+        # The regression's clip level is chosen on the residual torque, which another missing
+        # torque can dominate (gravity held by the loop's command: a clip at the holding level
+        # "explains" it); a clip acts on the command, so search it by simulation too, on levels
+        # named by the share of the run they clip, chosen and judged on halves of the run. A
+        # level the simulation alone chose must pass the bar of evidence by simulation alone
+        # (a quarter of the error, on each held-out half): a clip a little above the typical
+        # command trims the few largest steps, which a coarse encoder or another friction law
+        # can reward by 7-10 % on a log with no clip at all.
+        clips = _saturation_search(judge, base_model, base_score, cand, ctx)
+        if clips is not None and min(clips.gains) >= PARSIMONY_SIM_GAIN:
+            if clips.held_out_gain > cmp.improvement:
+                cand, score = clips.best, judge.score(clips.best)
+                cmp = judge.compare(base_score, score)
+            screen_ok = True
     if effect == "compliance":
         # A soft belt (load resonance inside the control loop's band) defeats the torque
         # regression, and the regression's damping is rough: search the belt by simulation
@@ -393,7 +425,12 @@ def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: 
     )
 
 
-def rank(rows: list[Judged], judge: KStepJudge) -> None:
+def rank(
+    rows: list[Judged],
+    judge: KStepJudge,
+    ctx: EvidenceContext | None = None,
+    screens: Mapping[str, Screen] | None = None,
+) -> None:
     """Best first (in place); a bias torque ahead of its equivalent direction-dependent friction.
 
     Parsimony: a significant leader with more parameters than a significant look-alike (gravity
@@ -404,16 +441,33 @@ def rank(rows: list[Judged], judge: KStepJudge) -> None:
     Backlash is judged by the screening alone (the k-step prediction cannot see where the load
     sits in the dead band), so among the significant it is placed by the screening too: ahead of
     every significant candidate whose torque regression explains less of the held-out torque (a
-    delay or a belt imitates the late load at reversals, but explains less of it).
+    delay or a belt imitates the late load at reversals, but explains less of it), and whose
+    effect, once in the regression, leaves the dead band its evidence (:func:`_play_beyond`;
+    with ``ctx``).
     """
     rows.sort(key=Judged.rank_key)
     bl = next((i for i, r in enumerate(rows) if r.effect == "backlash" and r.significant), None)
     if bl is not None:
         ahead = next(
-            (i for i in range(bl) if rows[i].screen.gain_cv < rows[bl].screen.gain_cv), None
+            (
+                i
+                for i in range(bl)
+                if rows[i].screen.gain_cv < rows[bl].screen.gain_cv
+                and (ctx is None or _play_beyond(rows[bl], rows[i], screens or {}, ctx))
+            ),
+            None,
         )
         if ahead is not None:
             rows.insert(ahead, rows.pop(bl))
+    if rows and rows[0].significant:
+        # A simpler look-alike leads (its k-step gain at the regression's values is larger):
+        # the richer torque of position leads instead when the log determines it.
+        rich = next(
+            (r for r in rows if r.significant and _look_alike(r, rows[0])),
+            None,
+        )
+        if rich is not None and min(_versus(rich, rows[0], judge)) >= MIN_HELD_OUT_GAIN:
+            rows.insert(0, rows.pop(rows.index(rich)))
     for j in range(1, len(rows)):
         top, other = rows[0], rows[j]
         if not other.significant:
@@ -437,6 +491,23 @@ def _delay_search(
     seconds = sorted(v * dt for v in grid if 0 < v * dt <= get_param("delay.seconds").upper)
     return held_out_search(
         judge, base_score, [with_values(base, {"delay.seconds": d}, add="delay") for d in seconds]
+    )
+
+
+def _saturation_search(
+    judge: KStepJudge, base: AxisModel, base_score: KStepScore, cand: AxisModel, ctx: EvidenceContext
+) -> HeldOutSearch | None:
+    """Clip levels by simulation: the screening's and those clipping :data:`CLIPPED_SHARES` of
+    the run's commands (None when the command never goes beyond the lowest such level)."""
+    au = np.abs(ctx.sig.u_v)
+    upper = get_param("saturation.limit").upper
+    levels = {float(np.quantile(au, 1.0 - share)) for share in CLIPPED_SHARES}
+    levels.add(float(cand.params["saturation.limit"]))
+    grid = sorted(v for v in levels if v > 0.0 and v < min(upper, float(au.max())))
+    if not grid:
+        return None
+    return held_out_search(
+        judge, base_score, [with_values(base, {"saturation.limit": v}, add="saturation") for v in grid]
     )
 
 
@@ -465,6 +536,9 @@ def _explains_more(rich: Judged, simple: Judged, judge: KStepJudge) -> bool:
     on each half of the run (stiction against a delay: the torque regression barely sees
     static friction, the simulation of starts from rest does).
     """
+    if _look_alike(rich, simple):
+        if min(_versus(rich, simple, judge)) >= MIN_HELD_OUT_GAIN:
+            return True
     by_sim = judge.compare(simple.score, rich.score)
     if by_sim.improvement >= PARSIMONY_SIM_GAIN and by_sim.robust_improvement >= 0.5 * PARSIMONY_SIM_GAIN:
         if min(judge.half_gains(simple.score, rich.score)) >= MIN_HELD_OUT_GAIN:
@@ -477,6 +551,77 @@ def _explains_more(rich: Judged, simple: Judged, judge: KStepJudge) -> bool:
     f = ((q.sse - r.sse) / extra) / (r.sse / dof)
     better_torque = float(stats.f.sf(f, extra, dof)) < MAX_SCREEN_P
     return better_torque and rich.score.sse < simple.score.sse
+
+
+def _play_beyond(bl: Judged, other: Judged, screens: Mapping[str, Screen], ctx: EvidenceContext) -> bool:
+    """Whether the dead band still passes its screening bar with ``other``'s effect in the
+    regression: a missing torque the dead band's coasting load partly imitates (an unbalance
+    that the load's late arrival at each reversal follows) leaves it nothing of its own."""
+    if other.effect in ("backlash", "compliance"):
+        return True
+    scr = screen_backlash(ctx.design, ctx.model, other.screen.structure, other.screen.regression)
+    return _backlash_significant(scr, screens, bl.cmp)
+
+
+def _look_alike(rich: Judged, simple: Judged) -> bool:
+    """Whether ``rich`` is a torque of position that ``simple`` imitates over a short travel, on a
+    rigid model (a belt's or dead band's windows are shot from several hidden starts, ten times
+    the cost of the halves' refits; their torque effects have their own path)."""
+    two_mass = rich.model.has("backlash") or rich.model.has("compliance")
+    return not two_mass and simple.effect in POSITION_LOOK_ALIKES.get(rich.effect, ())
+
+
+def _versus(rich: Judged, simple: Judged, judge: KStepJudge) -> tuple[float, float]:
+    """How much better ``rich`` predicts than its look-alike ``simple`` on held-out halves.
+
+    Each is refitted by simulation (its own parameters, :data:`LOOK_ALIKE_REFIT`) on one half of
+    the run (alternating 1 s blocks) and scored on the other: over a
+    short travel gravity is a bias torque plus a slope, and what the log determines is whether
+    that slope (and curvature) predicts data it was not fitted on. Returns the share of the
+    simple one's held-out error removed, per half; remembered on ``rich`` (against the first
+    look-alike compared: a bias torque and direction-dependent Coulomb friction are one story).
+    """
+    if rich.versus:  # offset and coulomb_asymmetry are one story on a rigid axis: compared once
+        return next(iter(rich.versus.values()))
+    half = judge.halves()
+    sse: dict[str, list[float]] = {}
+    for row in (rich, simple):
+        names = [k for k in row.model.free_param_names() if k.split(".")[0] in LOOK_ALIKE_REFIT[row.effect]]
+        sse[row.effect] = []
+        for h in (0, 1):
+            fitted, _ = refine(judge.subset(half == h), row.model, names, max_evals=LOOK_ALIKE_REFIT_EVALS)
+            sse[row.effect].append(judge.subset(half != h).score(fitted).sse)
+    gains = tuple(
+        1.0 - r / q if q > 0 else 0.0 for r, q in zip(sse[rich.effect], sse[simple.effect], strict=True)
+    )
+    rich.versus[simple.effect] = (gains[0], gains[1])
+    return rich.versus[simple.effect]
+
+
+def look_alike_notes(rows: list[Judged]) -> tuple[str, ...]:
+    """What the held-out comparison of a torque of position with its simpler look-alike found
+    (:func:`rank`): which one the log determines, or that it cannot tell them apart."""
+    notes = []
+    lead = rows[0].effect if rows else None
+    for r in rows:
+        for simple, (g0, g1) in r.versus.items():
+            figures = (
+                f"refitted by simulation on one half of the run and judged on the other, {r.effect} "
+                f"changes {simple}'s k-step error by {-100 * g0:+.0f} % and {-100 * g1:+.0f} % "
+                f"(naming {r.effect} needs -{100 * MIN_HELD_OUT_GAIN:.0f} % or better on each half)"
+            )
+            if min(g0, g1) >= MIN_HELD_OUT_GAIN:
+                notes.append(f"{r.effect} rather than {simple}: {figures}")
+            elif max(g0, g1) <= -MIN_HELD_OUT_GAIN:
+                # Not a verdict of its own: gravity may still lead by its torque regression.
+                notes.append(f"the held-out halves favour {simple} over {r.effect}: {figures}")
+            else:
+                experiment = get_effect(r.effect).experiment or ""
+                notes.append(
+                    f"{r.effect} and {simple} look alike on this log, which cannot tell them apart "
+                    f"(named: {lead}): {figures}. To tell them apart: {experiment}"
+                )
+    return tuple(notes)
 
 
 def _stiction_search(
@@ -604,7 +749,7 @@ def _backlash_significant(scr: Screen, screens: Mapping[str, Screen], cmp: Compa
     load without friction coasts in the gap), so the k-step judgement cannot confirm backlash
     even for the true model. The screening reconstructs the load through the whole run instead;
     it must explain a large share of the torque beyond what a play of a count or two explains
-    (the encoder's flicker at reversals: see ``effect_search._screen_backlash``), more of the
+    (the encoder's flicker at reversals: see ``effect_search.screen_backlash``), more of the
     held-out torque than a belt would, and the simulation must not be made significantly worse
     by it (the k-step error's t no lower than ``-MAX_BACKLASH_KSTEP_WORSE_T``: a bar on the
     error's own scatter, not on its size, which a short log's few windows make large either way).
@@ -624,6 +769,7 @@ __all__ = [
     "Judged",
     "finding",
     "judge_candidate",
+    "look_alike_notes",
     "rank",
     "reconsider_backlash",
     "refine_leaders",

@@ -11,6 +11,7 @@ so it forgets its unknown start within a few periods).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -183,6 +184,18 @@ class KStepJudge:
         self.noise_floor = max(sig.encoder_step_rad, 1e-12) ** 2 / 12.0
         self.encoder_step_rad = max(sig.encoder_step_rad, 1e-12)
 
+    def subset(self, keep: NDArray[np.bool_]) -> KStepJudge:
+        """The same judge on the windows in ``keep`` only (a mask over :attr:`starts`)."""
+        out = copy.copy(self)
+        out.starts, out.y, out.group = self.starts[keep], self.y[keep], self.group[keep]
+        y_end = out.y[:, -1]
+        out.end_norm = float(np.linalg.norm(y_end - y_end.mean())) or 1.0
+        return out
+
+    def halves(self) -> NDArray[np.int64]:
+        """0/1 per window: the half of the run (alternating 1 s blocks) it starts in."""
+        return ((self.starts * self.dt) // 1.0).astype(np.int64) % 2
+
     def initial_states(self, model: AxisModel) -> FloatArray:
         x0 = np.empty((self.starts.size, STATE_SIZE))
         x0[:, 0] = self.theta_s[self.starts]
@@ -240,7 +253,7 @@ class KStepJudge:
 
     def half_gains(self, base: KStepScore, cand: KStepScore) -> tuple[float, float]:
         """Error reduction on each half of the run (alternating 1 s blocks)."""
-        half = ((self.starts * self.dt) // 1.0).astype(np.int64) % 2
+        half = self.halves()
         out = []
         for h in (0, 1):
             b = float(base.window_sse[half == h].sum())
@@ -286,7 +299,7 @@ class HeldOutSearch:
 
 def held_out_search(judge: KStepJudge, base: KStepScore, models: Sequence[AxisModel]) -> HeldOutSearch:
     """Score ``models`` (a grid over an effect's parameters) with a two-fold held-out choice."""
-    half = ((judge.starts * judge.dt) // 1.0).astype(np.int64) % 2
+    half = judge.halves()
     sse = np.array([judge.score(m).window_sse for m in models])  # (g, m)
     base_half = np.array([base.window_sse[half == h].sum() for h in (0, 1)])
     by_half = np.stack([sse[:, half == h].sum(axis=1) for h in (0, 1)], axis=1)  # (g, 2)

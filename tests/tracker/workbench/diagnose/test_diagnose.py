@@ -119,3 +119,22 @@ def test_refit_keeps_an_asymmetry_it_does_not_fit() -> None:
     judge = KStepJudge(meas, prepare_signals(meas))
     fitted, _ = refine(judge, model, ["delay.seconds"], max_evals=5)
     assert fitted.params["coulomb_asymmetry.negative"] == 0.07
+
+
+def test_a_judge_on_a_subset_of_windows_scores_only_those() -> None:
+    """The held-out comparisons fit on one half's windows and score the other's: a judge
+    restricted to a mask scores exactly the masked windows of the whole judge."""
+    from tracker.workbench.diagnose.kstep import KStepJudge
+    from tracker.workbench.measurements.idim import prepare_signals
+
+    _, meas = hidden_case(("gravity",), SEEDS["gravity"])
+    judge = KStepJudge(meas, prepare_signals(meas))
+    model = AxisModel.for_axis("pan")
+    whole = judge.score(model).window_sse
+    half = judge.halves()
+    assert set(half.tolist()) == {0, 1}
+    for h in (0, 1):
+        part = judge.subset(half == h)
+        assert part.starts.size == int((half == h).sum())
+        assert part.score(model).window_sse == pytest.approx(whole[half == h])
+    assert judge.starts.size == whole.size  # the whole judge is untouched
