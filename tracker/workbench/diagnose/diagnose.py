@@ -40,6 +40,7 @@ from tracker.workbench.diagnose.judgement import (
     with_values,
 )
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
+from tracker.workbench.diagnose.rests import analyse_rests
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.idim import prepare_signals
@@ -179,8 +180,17 @@ def diagnose(
         base_model, base_score = refit_present_structure(judge, base_model, base_score, cancel)
     at_rest = sig.stuck[judge.starts]
     rest_err = float(base_score.window_sse[at_rest].sum() / max(base_score.sse, 1e-300))
+    # The rests judged against the Coulomb torque of the moving data (the torque regression):
+    # a model fitted to the whole run may have absorbed part of a missing break-away.
+    sliding_coulomb = float(base_values.get("coulomb.torque", base_model.params["coulomb.torque"]))
     ctx = EvidenceContext(
-        sig, design, base_reg, analyse_breakaway(meas, base_model), model, (rest_err, float(at_rest.mean()))
+        sig,
+        design,
+        base_reg,
+        analyse_breakaway(meas, base_model),
+        model,
+        (rest_err, float(at_rest.mean())),
+        analyse_rests(sig, base_reg, base_model, sliding_coulomb),
     )
     rows = [
         judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)

@@ -14,6 +14,7 @@ from tracker.plant.effects import CATALOGUE, Effect, generic_effects, get_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.breakaway import BreakAway
 from tracker.workbench.diagnose.kstep import Comparison
+from tracker.workbench.diagnose.rests import RestHolds
 from tracker.workbench.diagnose.screening import Screen, TorqueDesign
 from tracker.workbench.fit import generic
 from tracker.workbench.measurements.idim import Regression, Signals, encoder_timing_s
@@ -62,6 +63,7 @@ class EvidenceContext:
     breakaway: BreakAway | None
     model: AxisModel
     rest_share: tuple[float, float] = (0.0, 0.0)  # (share of k-step error, share of windows) from rest
+    rests: RestHolds | None = None  # rests that held a torque beyond Coulomb (open-loop steps)
 
     def confusions(self, effect: str, significant: Sequence[str]) -> tuple[str, ...]:
         """Look-alike effects of ``effect``: its own, then generic effects that name it as theirs

@@ -172,6 +172,9 @@ def _candidate_model(model: AxisModel, scr: Screen, ctx: EvidenceContext) -> Axi
         values["stiction.static_torque"] = max(
             values["stiction.static_torque"], fc + ctx.breakaway.static_excess_nm
         )
+    if scr.effect == "stiction" and ctx.rests is not None and ctx.rests.established() is not None:
+        # The rests that held bound the break-away from below: start the model there.
+        values["stiction.static_torque"] = max(values["stiction.static_torque"], ctx.rests.level_nm)
     return with_values(model, values, add=scr.effect)
 
 
@@ -297,16 +300,17 @@ def stiction_at_rest(ctx: EvidenceContext) -> str | None:
     instead, and judged by the stiction effect's own rule
     (:func:`tracker.plant.effects.stiction.established_at_rest`).
     """
+    held = ctx.rests.established() if ctx.rests is not None else None
     ba = ctx.breakaway
     if ba is None or ba.count <= MIN_BREAKAWAY_COUNT or not ba.static_excess_se > 0:
-        return None
+        return held
     values, _ = model_params(ctx.model, Structure.of(ctx.model), ctx.base_reg)
     sliding = float(values["coulomb.torque"])
     excess = ba.static_excess_nm + ba.coulomb_nm - sliding
     if excess / ba.static_excess_se < MIN_BREAKAWAY_T:
-        return None
+        return held
     lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
-    return stiction_effect.established_at_rest(sliding, excess, lower)
+    return stiction_effect.established_at_rest(sliding, excess, lower) or held
 
 
 def refit_present_structure(
