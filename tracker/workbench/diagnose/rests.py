@@ -49,7 +49,10 @@ class RestHolds:
     ``rests`` rests were long enough to judge; ``held`` of them held a torque beyond
     ``coulomb_nm + margin_nm`` long enough for the model to move a count; ``held_nm`` are those
     torque levels (shape (held,)); ``p_value`` the binomial tail of ``held`` out of ``rests`` with
-    per-rest chance ``Φ(−Z_DISTURBANCE)``; ``start_lag_s`` the lag of prompt starts allowed for.
+    per-rest chance ``Φ(−Z_DISTURBANCE)``; ``start_lag_s`` the lag of prompt starts allowed for;
+    ``both_ways`` whether rests held against torques of both signs (static friction opposes either
+    way; a missing bias or gravity torque, absent from the model, holds the axis only against
+    itself).
     """
 
     rests: int
@@ -60,6 +63,7 @@ class RestHolds:
     disturbance_nm: float
     start_lag_s: float
     p_value: float
+    both_ways: bool = True  # rests held against a torque of either sign
 
     @property
     def level_nm(self) -> float:
@@ -68,7 +72,7 @@ class RestHolds:
 
     def established(self) -> str | None:
         """Evidence that static friction is established by the rests alone, or None."""
-        if self.held < 2 or self.p_value > MAX_HOLD_P:
+        if self.held < 2 or self.p_value > MAX_HOLD_P or not self.both_ways:
             return None
         fc = self.coulomb_nm
         return (
@@ -219,8 +223,9 @@ def analyse_rests(
     # at once after a step past the break-away and never while the torque holds below it.
     start_lag = max(max(lags) if lags else 0.0, 0.0) + dt
     held: list[float] = []
+    directions: set[float] = set()
     for a, end in rests:
-        best = -math.inf
+        best, side = -math.inf, 0.0
         for s, f in ((1.0, fc[0]), (-1.0, fc[1])):
             tq = s * torque[a:end]
             if end < theta.size:
@@ -230,15 +235,24 @@ def analyse_rests(
                 continue
             for level in np.unique(np.quantile(tq[tq >= f + margin], np.linspace(0.0, 1.0, LEVELS))):
                 need = _travel_time_s(float(level) - f - margin, j, b, count) + start_lag
-                if _longest_run(tq >= level) * dt >= need:
-                    best = max(best, float(level))
+                if _longest_run(tq >= level) * dt >= need and level > best:
+                    best, side = float(level), s
         if math.isfinite(best):
             held.append(best)
+            directions.add(side)
     m = len(rests)
     p0 = float(stats.norm.sf(Z_DISTURBANCE))
     p_value = float(stats.binom.sf(len(held) - 1, m, p0)) if held else 1.0
     return RestHolds(
-        m, len(held), np.array(held, dtype=float), sliding_coulomb_nm, margin, disturbance, start_lag, p_value
+        m,
+        len(held),
+        np.array(held, dtype=float),
+        sliding_coulomb_nm,
+        margin,
+        disturbance,
+        start_lag,
+        p_value,
+        len(directions) == 2,
     )
 
 
