@@ -42,6 +42,7 @@ from tracker.workbench.diagnose.judgement import (
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
 from tracker.workbench.diagnose.rests import analyse_rests
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
+from tracker.workbench.diagnose.startlags import analyse_start_lags
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.idim import prepare_signals
 
@@ -191,6 +192,7 @@ def diagnose(
         model,
         (rest_err, float(at_rest.mean())),
         analyse_rests(sig, base_reg, base_model, sliding_coulomb),
+        analyse_start_lags(sig, base_model, sliding_coulomb),
     )
     rows = [
         judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)
@@ -263,7 +265,8 @@ def _candidate(r: Judged, ctx: EvidenceContext, significant: list[str]) -> Candi
         stderr={k: v for k, v in source.items() if k.split(".")[0] == r.effect},
         significant=r.significant,
         evidence=describe(r.effect, r.screen, r.cmp, ctx, r.model.params)
-        + (f"; {r.established}" if r.established else ""),
+        + (f"; {r.established}" if r.established else "")
+        + (f"; {ctx.start_lags.describe()}" if ctx.start_lags and r.effect in ("stiction", "delay") else ""),
         confused_with=ctx.confusions(r.effect, significant),
         experiment=experiment_for(r.effect),
         screen_gain=r.screen.gain_cv,

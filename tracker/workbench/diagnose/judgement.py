@@ -167,11 +167,10 @@ def _centred(scr: Screen, base: AxisModel) -> Screen:
 
 def _candidate_model(model: AxisModel, scr: Screen, ctx: EvidenceContext) -> AxisModel:
     values = dict(scr.params)
-    if scr.effect == "stiction" and ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T:
+    excess = breakaway_over_sliding(ctx) if scr.effect == "stiction" else None
+    if excess is not None and excess[0] > MIN_BREAKAWAY_T * excess[1]:
         fc = values.get("coulomb.torque", model.params["coulomb.torque"])
-        values["stiction.static_torque"] = max(
-            values["stiction.static_torque"], fc + ctx.breakaway.static_excess_nm
-        )
+        values["stiction.static_torque"] = max(values["stiction.static_torque"], fc + excess[0])
     if scr.effect == "stiction" and ctx.rests is not None and ctx.rests.established() is not None:
         # The rests that held bound the break-away from below: start the model there.
         values["stiction.static_torque"] = max(values["stiction.static_torque"], ctx.rests.level_nm)
@@ -221,7 +220,16 @@ def judge_candidate(
         if search.held_out_gain > cmp.improvement:
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
-        by_breakaway = ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T
+        # The break-away judged over the Coulomb torque of the moving data, as
+        # :func:`stiction_at_rest` does: the base model may be the user's own values (when the
+        # regression predicts worse), and a Coulomb torque below the data's makes every start
+        # look late by the difference (6006 dev delay-001: the defaults' Coulomb 18 % low).
+        # Unless the starts' times say a constant lag (a delay raises the torque seen at every
+        # start by the command's rise over the lag, which in closed loop is much the same each
+        # time): the break-away level alone does not tell them apart, the timing does.
+        excess = breakaway_over_sliding(ctx)
+        lagged = ctx.start_lags is not None and ctx.start_lags.favours_delay()
+        by_breakaway = excess is not None and excess[0] > MIN_BREAKAWAY_T * excess[1] and not lagged
         screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway
     if effect == "delay":
         # In closed loop the command answers the disturbance a little later, which biases the
@@ -231,7 +239,10 @@ def judge_candidate(
         if search.held_out_gain > cmp.improvement:
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
-        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN
+        # The starts' times say a constant lag: the grid above sits on the base model's inertia,
+        # which trades with a delay; let the refit by simulation judge it (6006 dev delay-001).
+        by_lags = ctx.start_lags is not None and ctx.start_lags.favours_delay()
+        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_lags
     if effect == "compliance":
         # A soft belt (load resonance inside the control loop's band) defeats the torque
         # regression, and the regression's damping is rough: search the belt by simulation
@@ -302,15 +313,31 @@ def stiction_at_rest(ctx: EvidenceContext) -> str | None:
     """
     held = ctx.rests.established() if ctx.rests is not None else None
     ba = ctx.breakaway
-    if ba is None or ba.count <= MIN_BREAKAWAY_COUNT or not ba.static_excess_se > 0:
+    measured = breakaway_over_sliding(ctx)
+    if ba is None or measured is None or ba.count <= MIN_BREAKAWAY_COUNT:
         return held
+    excess, se = measured
+    if excess / se < MIN_BREAKAWAY_T:
+        return held
+    sliding = ba.static_excess_nm + ba.coulomb_nm - excess
+    lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * se
+    return stiction_effect.established_at_rest(sliding, excess, lower) or held
+
+
+def breakaway_over_sliding(ctx: EvidenceContext) -> tuple[float, float] | None:
+    """The break-away's excess over the Coulomb torque of the torque regression on the moving
+    data, and its standard error (N·m); None without a break-away measurement.
+
+    The break-away analysis measures the excess over the base model's Coulomb torque, which is
+    the user's own value when the regression predicted worse, or one that absorbed part of a
+    missing break-away: either way not the sliding friction the data show.
+    """
+    ba = ctx.breakaway
+    if ba is None or not ba.static_excess_se > 0:
+        return None
     values, _ = model_params(ctx.model, Structure.of(ctx.model), ctx.base_reg)
     sliding = float(values["coulomb.torque"])
-    excess = ba.static_excess_nm + ba.coulomb_nm - sliding
-    if excess / ba.static_excess_se < MIN_BREAKAWAY_T:
-        return held
-    lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
-    return stiction_effect.established_at_rest(sliding, excess, lower) or held
+    return ba.static_excess_nm + ba.coulomb_nm - sliding, ba.static_excess_se
 
 
 def refit_present_structure(
