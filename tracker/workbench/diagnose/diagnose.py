@@ -40,7 +40,7 @@ from tracker.workbench.diagnose.judgement import (
     with_values,
 )
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
-from tracker.workbench.diagnose.rests import analyse_rests
+from tracker.workbench.diagnose.rests import analyse_rests, slow_residual_nm
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
 from tracker.workbench.diagnose.startlags import analyse_start_lags
 from tracker.workbench.measurements.data import Measurement
@@ -192,7 +192,7 @@ def diagnose(
         model,
         (rest_err, float(at_rest.mean())),
         analyse_rests(sig, base_reg, base_model, sliding_coulomb),
-        analyse_start_lags(sig, base_model, sliding_coulomb),
+        analyse_start_lags(sig, base_model, sliding_coulomb, slow_residual_nm(sig, base_reg)),
     )
     rows = [
         judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)

@@ -241,8 +241,12 @@ def judge_candidate(
             cmp = judge.compare(base_score, score)
         # The starts' times say a constant lag: the grid above sits on the base model's inertia,
         # which trades with a delay; let the refit by simulation judge it (6006 dev delay-001).
+        # Starts whose lag follows a break-away level (long after a creeping torque, short after
+        # a step) are static friction's, not a delay's: the grid's gain alone does not pass then.
         by_lags = ctx.start_lags is not None and ctx.start_lags.favours_delay()
-        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_lags
+        leveled = ctx.start_lags is not None and ctx.start_lags.favours_level()
+        by_search = min(search.gains) >= MIN_HELD_OUT_GAIN and not leveled
+        screen_ok = screen_ok or by_search or by_lags
     if effect == "compliance":
         # A soft belt (load resonance inside the control loop's band) defeats the torque
         # regression, and the regression's damping is rough: search the belt by simulation

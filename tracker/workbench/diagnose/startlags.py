@@ -15,13 +15,16 @@ predicts it:
 * a delay ``d``:      ``d + T(τ)``   (``T``: the rigid model's time to reach the next count),
 * a break-away ``F``: ``t_F + T(F)`` (``t_F``: the time τ took to reach ``F`` after ``k``).
 
-The scatter each start is allowed comes from the encoder and the sampling, not from the
-fit: the axis sits anywhere within its count, so the time to the next count is spread over
-``[0, T]`` (``T·√U``, U uniform: standard deviation ``T/√18``, mean ``2T/3``), plus a sample
-period's rounding (``dt/√12``). Each story's one parameter is fitted by weighted least squares
-on a grid, and the stories are compared by their χ² (same number of parameters): a difference
-beyond ``MIN_CHI2`` says which explains the start times, both ways — a constant lag vetoes
-stiction at rest, a lag that follows the break-away level vetoes a delay.
+The scatter each start is allowed comes from the log, not from the fit: the axis sits anywhere
+within its count, so the time to the next count is spread over ``[0, T]`` (``T·√U``, U
+uniform: standard deviation ``T/√18``, mean ``2T/3``); a sample period's rounding
+(``dt/√12``); and the disturbance, a torque the model does not know, which moves the break by
+its standard deviation (the slow residual torque) over the torque's rate. "Neither" allows a
+lag of up to ``MIN_DELAY_SAMPLES`` (the loop's own timing). Each story's one parameter is
+fitted by weighted least squares, and the stories are compared by their χ² (same number of
+parameters), scaled by the best story's χ² per degree of freedom when the log scatters more
+than that: a difference beyond ``MIN_CHI2`` says which explains the start times, both ways —
+a constant lag vetoes stiction's break-away level, a lag that follows a level vetoes a delay.
 """
 
 from __future__ import annotations
@@ -46,7 +49,9 @@ MIN_CHI2 = float(stats.chi2.ppf(1.0 - 5e-4, 1))
 # A constant lag shorter than this is the loop's own timing (a computational latency of one
 # sample, seen up to a sample later by when in the period the encoder is read), not a drive's.
 MIN_DELAY_SAMPLES = 2.0
-LEVEL_GRID = 48  # break-away levels tried, from Coulomb to the highest start torque
+# Break-away levels tried: steps of 1 % of Coulomb up to 3 × it (or the highest start torque).
+LEVEL_STEP = 0.01
+LEVEL_GRID = 300
 MAX_LAG_S = 0.2  # starts whose torque stayed above Coulomb longer than this are not timed
 
 
@@ -135,9 +140,16 @@ def _starts(
     return out
 
 
-def analyse_start_lags(sig: Signals, model: AxisModel, sliding_coulomb_nm: float) -> StartLags | None:
+def analyse_start_lags(
+    sig: Signals, model: AxisModel, sliding_coulomb_nm: float, disturbance_nm: float = 0.0
+) -> StartLags | None:
     """Time every start from rest against ``model`` (rigid, no stiction, no delay assumed) and
-    ``sliding_coulomb_nm`` (the torque regression's Coulomb); None with too few starts."""
+    ``sliding_coulomb_nm`` (the torque regression's Coulomb); None with too few starts.
+
+    ``disturbance_nm``: the standard deviation of the torque the model does not know on a
+    rest's time scale (:func:`tracker.workbench.diagnose.rests.slow_residual_nm`); it moves the
+    moment the axis breaks away by itself over the torque's rate, which each start is allowed.
+    """
     theta, dt, count = sig.theta_raw_rad, sig.dt_s, sig.encoder_step_rad
     if count <= 0 or sliding_coulomb_nm <= 0:
         return None
@@ -156,7 +168,10 @@ def analyse_start_lags(sig: Signals, model: AxisModel, sliding_coulomb_nm: float
     # scatter the unknown place within the count and the sampling allow each start.
     travel = np.array([_travel_time_s(float(np.mean(st.torque)) - f, j, b, count) for st, f in starts])
     travel = np.minimum(travel, MAX_LAG_S)
-    var = travel**2 / 18.0 + dt**2 / 12.0
+    # The torque's rate over the lag (a step: its rise over the lag, a large rate).
+    rate = np.array([max(float(st.torque[-1]) - f, 0.0) for st, f in starts]) / np.maximum(elapsed, dt)
+    timing = np.where(rate > 0, disturbance_nm / np.maximum(rate, 1e-300), MAX_LAG_S)
+    var = travel**2 / 18.0 + dt**2 / 12.0 + np.minimum(timing, MAX_LAG_S) ** 2
     w = 1.0 / var
     mean_travel = 2.0 / 3.0 * travel
     # Delay: elapsed = d + 2T/3 (weighted least squares, d >= 0).
@@ -169,7 +184,8 @@ def analyse_start_lags(sig: Signals, model: AxisModel, sliding_coulomb_nm: float
     # Break-away level F: elapsed = t_F + 2T(F)/3 (a grid from Coulomb to the highest torque).
     top = max(float(np.max(st.torque)) - f for st, f in starts)
     best_level, chi2_level = 0.0, chi2_none
-    for excess in np.linspace(0.0, max(top, 0.0), LEVEL_GRID)[1:]:
+    grid = np.arange(1, LEVEL_GRID + 1) * sliding_coulomb_nm * LEVEL_STEP
+    for excess in grid[grid < top]:
         pred = np.empty(len(starts))
         for i, (st, f) in enumerate(starts):
             reach = np.flatnonzero(st.torque >= f + excess)
