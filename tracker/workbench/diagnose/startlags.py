@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.rests import _other_torque, _travel_time_s
+from tracker.workbench.diagnose.rests import _other_torque
 from tracker.workbench.measurements.idim import Signals
 
 FloatArray = NDArray[np.float64]
@@ -108,6 +108,38 @@ class StartLags:
         )
 
 
+def _travel_times_s(excess_nm: FloatArray, j: float, b: float, count_rad: float) -> FloatArray:
+    """:func:`tracker.workbench.diagnose.rests._travel_time_s` over an array of net torques
+    (inf where not positive): the time a rigid axis from rest needs to cover ``count_rad``."""
+    f = np.asarray(excess_nm, dtype=float)
+    out = np.full(f.shape, math.inf)
+    pos = f > 0
+    if not pos.any():
+        return out
+    fp = f[pos]
+    rigid = np.sqrt(2.0 * count_rad * j / fp)
+    if b <= 0:
+        out[pos] = rigid
+        return out
+    tau = j / b
+
+    def covered(t: FloatArray) -> FloatArray:
+        return np.asarray((fp / b) * (t - tau * (-np.expm1(-t / tau))), dtype=float)
+
+    lo, hi = np.zeros_like(fp), np.maximum(rigid, 1e-9)
+    for _ in range(60):  # the viscous drag only lengthens it: double until the count is covered
+        short = covered(hi) < count_rad
+        if not short.any():
+            break
+        hi = np.where(short, 2.0 * hi, hi)
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        below = covered(mid) < count_rad
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    out[pos] = hi
+    return out
+
+
 @dataclass(frozen=True, slots=True)
 class _Start:
     torque: FloatArray  # τ from the crossing k to the sample before the change
@@ -166,7 +198,7 @@ def analyse_start_lags(
     elapsed = np.array([st.elapsed_s for st, _ in starts])
     # The travel to the next count at the torque applied (its mean over the lag), and the
     # scatter the unknown place within the count and the sampling allow each start.
-    travel = np.array([_travel_time_s(float(np.mean(st.torque)) - f, j, b, count) for st, f in starts])
+    travel = _travel_times_s(np.array([float(np.mean(st.torque)) - f for st, f in starts]), j, b, count)
     travel = np.minimum(travel, MAX_LAG_S)
     # The torque's rate over the lag (a step: its rise over the lag, a large rate).
     rate = np.array([max(float(st.torque[-1]) - f, 0.0) for st, f in starts]) / np.maximum(elapsed, dt)
@@ -183,22 +215,28 @@ def analyse_start_lags(
     chi2_delay = float(np.sum(w * (elapsed - d - mean_travel) ** 2))
     # Break-away level F: elapsed = t_F + 2T(F)/3 (a grid from Coulomb to the highest torque).
     top = max(float(np.max(st.torque)) - f for st, f in starts)
-    best_level, chi2_level = 0.0, chi2_none
     grid = np.arange(1, LEVEL_GRID + 1) * sliding_coulomb_nm * LEVEL_STEP
-    for excess in grid[grid < top]:
-        pred = np.empty(len(starts))
+    grid = grid[grid < top]
+    best_level, chi2_level = 0.0, chi2_none
+    if grid.size:
+        reach_s = np.full((grid.size, len(starts)), math.inf)
+        excess_after = np.zeros((grid.size, len(starts)))
         for i, (st, f) in enumerate(starts):
-            reach = np.flatnonzero(st.torque >= f + excess)
-            if reach.size == 0:
-                pred[i] = math.inf  # never reached the level, yet the axis moved
-                continue
-            level = float(np.mean(st.torque[reach[0] :]))
-            t_travel = min(_travel_time_s(level - f, j, b, count), MAX_LAG_S)
-            pred[i] = reach[0] * dt + 2.0 / 3.0 * t_travel
-        resid = np.where(np.isfinite(pred), elapsed - pred, MAX_LAG_S)
-        chi2 = float(np.sum(w * resid**2))
-        if chi2 < chi2_level:
-            best_level, chi2_level = float(excess), chi2
+            # First sample at or above each level (the running maximum is non-decreasing), and
+            # the mean torque from there to the start.
+            first = np.searchsorted(np.maximum.accumulate(st.torque), f + grid, side="left")
+            ok = first < st.torque.size
+            csum = np.concatenate([[0.0], np.cumsum(st.torque)])
+            reach_s[ok, i] = first[ok] * dt
+            excess_after[ok, i] = (csum[-1] - csum[first[ok]]) / (st.torque.size - first[ok]) - f
+        t_travel = np.minimum(_travel_times_s(excess_after, j, b, count), MAX_LAG_S)
+        pred = reach_s + 2.0 / 3.0 * t_travel
+        # A level the torque never reached, yet the axis moved: the largest misfit allowed.
+        resid = np.where(np.isfinite(pred), elapsed[None, :] - pred, MAX_LAG_S)
+        chi2 = np.sum(w[None, :] * resid**2, axis=1)
+        i_best = int(np.argmin(chi2))
+        if chi2[i_best] < chi2_level:
+            best_level, chi2_level = float(grid[i_best]), float(chi2[i_best])
     return StartLags(
         len(starts),
         d,
