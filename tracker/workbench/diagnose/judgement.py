@@ -230,7 +230,10 @@ def judge_candidate(
         excess = breakaway_over_sliding(ctx)
         lagged = ctx.start_lags is not None and ctx.start_lags.favours_delay()
         by_breakaway = excess is not None and excess[0] > MIN_BREAKAWAY_T * excess[1] and not lagged
-        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway
+        # ... or the starts' times follow a break-away level, beyond a constant lag (with the
+        # model's delay applied, if it has one: a stiction paired with a delay).
+        by_lags = ctx.start_lags is not None and ctx.start_lags.favours_level()
+        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway or by_lags
     if effect == "delay":
         # In closed loop the command answers the disturbance a little later, which biases the
         # regression's alignment of the whole input: judge the delay by simulation as well, on

@@ -175,7 +175,7 @@ def _starts(
 def analyse_start_lags(
     sig: Signals, model: AxisModel, sliding_coulomb_nm: float, disturbance_nm: float = 0.0
 ) -> StartLags | None:
-    """Time every start from rest against ``model`` (rigid, no stiction, no delay assumed) and
+    """Time every start from rest against ``model`` (rigid, no stiction; its delay, if any, applied) and
     ``sliding_coulomb_nm`` (the torque regression's Coulomb); None with too few starts.
 
     ``disturbance_nm``: the standard deviation of the torque the model does not know on a
@@ -192,6 +192,11 @@ def analyse_start_lags(
     fc = (fc_model + shift, fc_neg_model + shift)
     j, b = float(p["inertia.J"]), float(p["viscous.b"])
     torque = model.gain_nm_per_v * sig.u_v - _other_torque(model, theta)
+    if model.has("delay"):
+        # The torque as it reaches the axis: the lag left is what the model's delay misses.
+        lag = int(round(float(p["delay.seconds"]) / dt))
+        if lag > 0:
+            torque = np.concatenate([np.full(lag, torque[0]), torque[:-lag]])
     starts = _starts(torque, theta, fc, dt)
     if len(starts) < MIN_STARTS:
         return None
