@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
+from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.rests import _other_torque
 from tracker.workbench.measurements.idim import Signals
@@ -90,11 +91,15 @@ class StartLags:
         )
 
     def favours_level(self) -> bool:
-        """A break-away level above Coulomb explains the starts, significantly better (on the
-        log's own scatter) than none and than a constant lag."""
+        """A break-away level past a Stribeck dip explains the starts, significantly better (on
+        the log's own scatter) than none and than a constant lag.
+
+        A level within ``stiction.ESTABLISHED_EXCESS_RATIO`` of the sliding Coulomb torque is
+        that torque misestimated (or a Stribeck dip), not static friction.
+        """
         scale = self._scale(self.chi2_level)
         return (
-            self.level_nm > self.coulomb_nm
+            self.level_nm > (1.0 + stiction_effect.ESTABLISHED_EXCESS_RATIO) * self.coulomb_nm
             and (self.chi2_none - self.chi2_level) / scale > MIN_CHI2
             and (self.chi2_delay - self.chi2_level) / scale > MIN_CHI2
         )
