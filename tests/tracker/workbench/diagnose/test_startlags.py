@@ -111,3 +111,30 @@ def test_closed_loop_delay_is_named_delay_not_stiction() -> None:
     assert d.verdict == "delay"
     assert "constant lag" in d.candidate("delay").evidence
     assert not d.candidate("stiction").significant
+
+
+def test_with_the_delay_in_the_model_no_lag_is_left() -> None:
+    """The second round: the model has the delay, so the starts come on time again."""
+    meas = _log(True)
+    model = AxisModel.for_axis("pan", gain_nm_per_v=GAIN_NM_PER_V)
+    sig = prepare_signals(meas)
+    reg = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"]).fit(
+        Structure.of(model)
+    )
+    values, _ = model_params(model, Structure.of(model), reg)
+    delayed = with_values(model, {**values, "delay.seconds": DELAY_S + 1.0 / RATE_HZ}, add="delay")
+    lags = analyse_start_lags(sig, delayed, float(values["coulomb.torque"]))
+    assert lags is not None
+    assert not lags.favours_delay()
+    assert lags.delay_s < 3.0 / RATE_HZ
+
+
+def test_a_level_within_the_stribeck_dip_of_coulomb_is_no_break_away() -> None:
+    """A level 14 % above the sliding Coulomb is that Coulomb misestimated, however well it
+    fits (an independent clean PID log's starts did); 80 % above is static friction."""
+    fc = 0.05
+    strong = {"count": 30, "delay_s": 0.008, "coulomb_nm": fc, "chi2_none": 400.0, "chi2_delay": 300.0}
+    assert not StartLags(**strong, level_nm=1.14 * fc, chi2_level=30.0, dt_s=1e-3).favours_level()
+    assert StartLags(**strong, level_nm=1.8 * fc, chi2_level=30.0, dt_s=1e-3).favours_level()
+    # ... and only when it beats a constant lag on the log's own scatter.
+    assert not StartLags(**strong, level_nm=1.8 * fc, chi2_level=290.0, dt_s=1e-3).favours_level()
