@@ -224,12 +224,11 @@ def judge_candidate(
         # :func:`stiction_at_rest` does: the base model may be the user's own values (when the
         # regression predicts worse), and a Coulomb torque below the data's makes every start
         # look late by the difference (6006 dev delay-001: the defaults' Coulomb 18 % low).
-        # Unless the starts' times say a constant lag (a delay raises the torque seen at every
-        # start by the command's rise over the lag, which in closed loop is much the same each
-        # time): the break-away level alone does not tell them apart, the timing does.
+        # (A constant lag of the starts does not veto it: on closed-loop lead-lag starts the
+        # level story can fit worse than a lag though static friction is there, 6006 dev
+        # stiction-005; the delay then competes by simulation, refitted: see below.)
         excess = breakaway_over_sliding(ctx)
-        lagged = ctx.start_lags is not None and ctx.start_lags.favours_delay()
-        by_breakaway = excess is not None and excess[0] > MIN_BREAKAWAY_T * excess[1] and not lagged
+        by_breakaway = excess is not None and excess[0] > MIN_BREAKAWAY_T * excess[1]
         # ... or the starts' times follow a break-away level, beyond a constant lag (with the
         # model's delay applied, if it has one: a stiction paired with a delay).
         by_lags = ctx.start_lags is not None and ctx.start_lags.favours_level()

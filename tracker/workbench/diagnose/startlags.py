@@ -24,7 +24,8 @@ lag of up to ``MIN_DELAY_SAMPLES`` (the loop's own timing). Each story's one par
 fitted by weighted least squares, and the stories are compared by their χ² (same number of
 parameters), scaled by the best story's χ² per degree of freedom when the log scatters more
 than that: a difference beyond ``MIN_CHI2`` says which explains the start times, both ways —
-a constant lag vetoes stiction's break-away level, a lag that follows a level vetoes a delay.
+a constant lag opens the delay's refit by simulation, a lag that follows a level past the
+Stribeck dip opens stiction's and keeps the delay's grid gain from passing.
 """
 
 from __future__ import annotations
