@@ -103,14 +103,17 @@ def _pid_delay_log() -> tuple[Measurement, dict[str, object]]:
 
 def test_closed_loop_delay_is_named_delay_not_stiction() -> None:
     """Regression: main named stiction (the start torques sat ~11 mN·m above the sliding
-    Coulomb, as if held; the delay's grid sat on the user's inertia and failed a half)."""
+    Coulomb, as if held; the delay's grid sat on the user's inertia, failed a half and was never
+    refitted by simulation)."""
     meas, truth = _pid_delay_log()
     assert truth["hidden"] == ["delay"]
     model = AxisModel.for_axis(str(truth["axis"]), gain_nm_per_v=float(truth["gain_nm_per_v"]))  # type: ignore[arg-type]
     d = diagnose(meas, model)
     assert d.verdict == "delay"
     assert "constant lag" in d.candidate("delay").evidence
-    assert not d.candidate("stiction").significant
+    # Refitted by simulation the delay predicts better than the stiction the start torques
+    # suggested (which may stay significant, second).
+    assert d.candidate("delay").kstep_gain > d.candidate("stiction").kstep_gain
 
 
 def test_with_the_delay_in_the_model_no_lag_is_left() -> None:
