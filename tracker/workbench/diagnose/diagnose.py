@@ -41,7 +41,9 @@ from tracker.workbench.diagnose.judgement import (
     with_values,
 )
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
+from tracker.workbench.diagnose.rests import analyse_rests, slow_residual_nm
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
+from tracker.workbench.diagnose.startlags import analyse_start_lags
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.idim import prepare_signals
 
@@ -180,8 +182,18 @@ def diagnose(
         base_model, base_score = refit_present_structure(judge, base_model, base_score, cancel)
     at_rest = sig.stuck[judge.starts]
     rest_err = float(base_score.window_sse[at_rest].sum() / max(base_score.sse, 1e-300))
+    # The rests judged against the Coulomb torque of the moving data (the torque regression):
+    # a model fitted to the whole run may have absorbed part of a missing break-away.
+    sliding_coulomb = float(base_values.get("coulomb.torque", base_model.params["coulomb.torque"]))
     ctx = EvidenceContext(
-        sig, design, base_reg, analyse_breakaway(meas, base_model), model, (rest_err, float(at_rest.mean()))
+        sig,
+        design,
+        base_reg,
+        analyse_breakaway(meas, base_model),
+        model,
+        (rest_err, float(at_rest.mean())),
+        analyse_rests(sig, base_reg, base_model, sliding_coulomb),
+        analyse_start_lags(sig, base_model, sliding_coulomb, slow_residual_nm(sig, base_reg)),
     )
     rows = [
         judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)
@@ -257,7 +269,8 @@ def _candidate(r: Judged, ctx: EvidenceContext, significant: list[str]) -> Candi
         stderr={k: v for k, v in source.items() if k.split(".")[0] == r.effect},
         significant=r.significant,
         evidence=describe(r.effect, r.screen, r.cmp, ctx, r.model.params)
-        + (f"; {r.established}" if r.established else ""),
+        + (f"; {r.established}" if r.established else "")
+        + (f"; {ctx.start_lags.describe()}" if ctx.start_lags and r.effect in ("stiction", "delay") else ""),
         confused_with=ctx.confusions(r.effect, significant),
         experiment=experiment_for(r.effect),
         screen_gain=r.screen.gain_cv,

@@ -15,7 +15,9 @@ from tracker.plant.effects import ripple as ripple_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.breakaway import BreakAway
 from tracker.workbench.diagnose.kstep import Comparison
+from tracker.workbench.diagnose.rests import RestHolds
 from tracker.workbench.diagnose.screening import Screen, TorqueDesign
+from tracker.workbench.diagnose.startlags import StartLags
 from tracker.workbench.fit import generic
 from tracker.workbench.measurements.idim import Regression, Signals, encoder_timing_s
 
@@ -63,6 +65,8 @@ class EvidenceContext:
     breakaway: BreakAway | None
     model: AxisModel
     rest_share: tuple[float, float] = (0.0, 0.0)  # (share of k-step error, share of windows) from rest
+    rests: RestHolds | None = None  # rests that held a torque beyond Coulomb (open-loop steps)
+    start_lags: StartLags | None = None  # start times from rest: a constant lag or a break-away level
 
     def confusions(self, effect: str, significant: Sequence[str]) -> tuple[str, ...]:
         """Look-alike effects of ``effect``: its own, then generic effects that name it as theirs

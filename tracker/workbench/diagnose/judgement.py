@@ -184,11 +184,13 @@ def _centred(scr: Screen, base: AxisModel) -> Screen:
 
 def _candidate_model(model: AxisModel, scr: Screen, ctx: EvidenceContext) -> AxisModel:
     values = dict(scr.params)
-    if scr.effect == "stiction" and ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T:
+    excess = breakaway_over_sliding(ctx) if scr.effect == "stiction" else None
+    if excess is not None and excess[0] > MIN_BREAKAWAY_T * excess[1]:
         fc = values.get("coulomb.torque", model.params["coulomb.torque"])
-        values["stiction.static_torque"] = max(
-            values["stiction.static_torque"], fc + ctx.breakaway.static_excess_nm
-        )
+        values["stiction.static_torque"] = max(values["stiction.static_torque"], fc + excess[0])
+    if scr.effect == "stiction" and ctx.rests is not None and ctx.rests.established() is not None:
+        # The rests that held bound the break-away from below: start the model there.
+        values["stiction.static_torque"] = max(values["stiction.static_torque"], ctx.rests.level_nm)
     return with_values(model, values, add=scr.effect)
 
 
@@ -235,8 +237,19 @@ def judge_candidate(
         if search.held_out_gain > cmp.improvement:
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
-        by_breakaway = ctx.breakaway is not None and ctx.breakaway.static_t > MIN_BREAKAWAY_T
-        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway
+        # The break-away judged over the Coulomb torque of the moving data, as
+        # :func:`stiction_at_rest` does: the base model may be the user's own values (when the
+        # regression predicts worse), and a Coulomb torque below the data's makes every start
+        # look late by the difference (6006 dev delay-001: the defaults' Coulomb 18 % low).
+        # (A constant lag of the starts does not veto it: on closed-loop lead-lag starts the
+        # level story can fit worse than a lag though static friction is there, 6006 dev
+        # stiction-005; the delay then competes by simulation, refitted: see below.)
+        excess = breakaway_over_sliding(ctx)
+        by_breakaway = excess is not None and excess[0] > MIN_BREAKAWAY_T * excess[1]
+        # ... or the starts' times follow a break-away level, beyond a constant lag (with the
+        # model's delay applied, if it has one: a stiction paired with a delay).
+        by_lags = ctx.start_lags is not None and ctx.start_lags.favours_level()
+        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN or by_breakaway or by_lags
     if effect == "delay":
         # In closed loop the command answers the disturbance a little later, which biases the
         # regression's alignment of the whole input: judge the delay by simulation as well, on
@@ -245,7 +258,14 @@ def judge_candidate(
         if search.held_out_gain > cmp.improvement:
             cand, score = search.best, judge.score(search.best)
             cmp = judge.compare(base_score, score)
-        screen_ok = screen_ok or min(search.gains) >= MIN_HELD_OUT_GAIN
+        # The starts' times say a constant lag: the grid above sits on the base model's inertia,
+        # which trades with a delay; let the refit by simulation judge it (6006 dev delay-001).
+        # Starts whose lag follows a break-away level (long after a creeping torque, short after
+        # a step) are static friction's, not a delay's: the grid's gain alone does not pass then.
+        by_lags = ctx.start_lags is not None and ctx.start_lags.favours_delay()
+        leveled = ctx.start_lags is not None and ctx.start_lags.favours_level()
+        by_search = min(search.gains) >= MIN_HELD_OUT_GAIN and not leveled
+        screen_ok = screen_ok or by_search or by_lags
     if effect == "saturation":
         # The regression's clip level is chosen on the residual torque, which another missing
         # torque can dominate (gravity held by the loop's command: a clip at the holding level
@@ -329,16 +349,33 @@ def stiction_at_rest(ctx: EvidenceContext) -> str | None:
     instead, and judged by the stiction effect's own rule
     (:func:`tracker.plant.effects.stiction.established_at_rest`).
     """
+    held = ctx.rests.established() if ctx.rests is not None else None
     ba = ctx.breakaway
-    if ba is None or ba.count <= MIN_BREAKAWAY_COUNT or not ba.static_excess_se > 0:
+    measured = breakaway_over_sliding(ctx)
+    if ba is None or measured is None or ba.count <= MIN_BREAKAWAY_COUNT:
+        return held
+    excess, se = measured
+    if excess / se < MIN_BREAKAWAY_T:
+        return held
+    sliding = ba.static_excess_nm + ba.coulomb_nm - excess
+    lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * se
+    return stiction_effect.established_at_rest(sliding, excess, lower) or held
+
+
+def breakaway_over_sliding(ctx: EvidenceContext) -> tuple[float, float] | None:
+    """The break-away's excess over the Coulomb torque of the torque regression on the moving
+    data, and its standard error (N·m); None without a break-away measurement.
+
+    The break-away analysis measures the excess over the base model's Coulomb torque, which is
+    the user's own value when the regression predicted worse, or one that absorbed part of a
+    missing break-away: either way not the sliding friction the data show.
+    """
+    ba = ctx.breakaway
+    if ba is None or not ba.static_excess_se > 0:
         return None
     values, _ = model_params(ctx.model, Structure.of(ctx.model), ctx.base_reg)
     sliding = float(values["coulomb.torque"])
-    excess = ba.static_excess_nm + ba.coulomb_nm - sliding
-    if excess / ba.static_excess_se < MIN_BREAKAWAY_T:
-        return None
-    lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
-    return stiction_effect.established_at_rest(sliding, excess, lower)
+    return ba.static_excess_nm + ba.coulomb_nm - sliding, ba.static_excess_se
 
 
 def refit_present_structure(
