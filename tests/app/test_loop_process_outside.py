@@ -4,6 +4,11 @@ against the loop in a thread): each test here failed before its fix."""
 from __future__ import annotations
 
 import math
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -49,3 +54,62 @@ def test_tracking_turned_off_stays_off_after_a_restart_with_audio(tmp_path: Path
     for rig in make_rig(data, **settings):
         st = status(rig)
         assert st["tracking"] is False and st["settings_warnings"] == [], st
+
+
+SERVICE = """
+import asyncio, os, sys
+sys.path.insert(0, {root!r})
+from app.work import WorkPool
+from app.workers import WorkerPool
+from tests.tracker.test_loop_process import build_twin
+from tracker.loop_process.proxy import LoopProcess
+
+async def main():
+    heavy = WorkPool(workers=1)
+    jobs = WorkerPool(1)
+    proc = LoopProcess(build_twin, 0.01)
+    task = asyncio.create_task(proc.run())
+    heavy_pid = heavy._pool().submit(os.getpid).result(60)
+    job_pid = jobs._executor.submit(os.getpid).result(60)
+    print(proc.pid, heavy_pid, job_pid, proc._shared.name, flush=True)
+    await task
+
+if __name__ == "__main__":
+    asyncio.run(main())
+"""
+
+
+def _gone(pid: int) -> bool:
+    try:
+        return "State:\tZ" in Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return True
+
+
+def test_a_killed_service_leaves_no_worker_and_no_shared_memory(tmp_path: Path) -> None:
+    """Bug: after a ``kill -9`` of the service the loop's process stopped, but the heavy and job
+    workers (spawned pools) lived on as orphans, and with them the resource tracker, which then
+    never unlinked the loop's shared memory: one /dev/shm segment and two processes per crash."""
+    root = Path(__file__).resolve().parents[2]
+    script = tmp_path / "service.py"
+    script.write_text(SERVICE.format(root=str(root)))
+    service = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert service.stdout is not None
+        loop_pid, heavy_pid, job_pid, shm = service.stdout.readline().split()
+        pids = [int(loop_pid), int(heavy_pid), int(job_pid)]
+        segment = Path("/dev/shm") / shm
+        assert segment.exists() and not any(_gone(p) for p in pids)
+        os.kill(service.pid, signal.SIGKILL)
+        service.wait(10)
+        end = time.monotonic() + 10.0
+        while (segment.exists() or not all(_gone(p) for p in pids)) and time.monotonic() < end:
+            time.sleep(0.1)
+        assert [p for p in pids if not _gone(p)] == [], "a process outlived the service"
+        assert not segment.exists(), f"{segment} outlived the service"
+    finally:
+        if service.poll() is None:
+            service.kill()
+        for p in pids if "pids" in locals() else []:
+            if not _gone(p):
+                os.kill(p, signal.SIGKILL)
