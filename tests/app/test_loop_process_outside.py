@@ -113,3 +113,27 @@ def test_a_killed_service_leaves_no_worker_and_no_shared_memory(tmp_path: Path) 
         for p in pids if "pids" in locals() else []:
             if not _gone(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def test_the_last_telemetry_frame_says_fault_when_the_loops_process_dies(tmp_path: Path) -> None:
+    """Bug: when the loop's process died, telemetry stopped on the last frame it had sent —
+    mode "manual" or "tracking", the axes' command still on — while status said "fault": a
+    WebSocket client (a room-control system, the console's plot) saw a healthy rig frozen. With
+    the loop in a thread a fault reaches the frames too."""
+    for rig in make_rig(tmp_path, loop_process=True):
+        _kill_the_loop_and_read_the_last_frame(rig)
+
+
+def _kill_the_loop_and_read_the_last_frame(rig: Any) -> None:  # noqa: ANN401 - the conftest's Rig
+    from tests.app.conftest import poll
+
+    hub = rig.client.app.state.svc.hub
+    r = rig.client.put(f"{API}/pointing", headers=rig.h("operator"), json={"pan_deg": 10.0, "tilt_deg": 0.0})
+    assert r.status_code == 200, r.text
+    assert poll(lambda: hub.latest_frame is not None and hub.latest_frame["mode"] == "manual", 5.0)
+    os.kill(status(rig)["driver"]["loop_process"]["pid"], signal.SIGKILL)
+    assert poll(lambda: status(rig)["mode"] == "fault", 5.0)
+    frame = poll(lambda: hub.latest_frame if hub.latest_frame["mode"] == "fault" else None, 2.0)
+    assert frame is not None, f"the last frame still says {hub.latest_frame['mode']}"
+    assert frame["pan_u_v"] == 0.0 and frame["tilt_u_v"] == 0.0  # the axes are stopped
+    assert frame["pan_deg"] == pytest.approx(status(rig)["pan_deg"], abs=0.01)
