@@ -63,6 +63,7 @@ class ConsoleState:
     def __init__(self, store: SettingsStore) -> None:
         self.store = store
         self.warnings: list[str] = []
+        self.tracking_restored = False  # restore() applied a stored tracking on/off
 
     # -- after a change the engine accepted ---------------------------------------------------
     def model_changed(self, axis: str, model_json: dict[str, Any], version_id: int | None) -> None:
@@ -86,7 +87,8 @@ class ConsoleState:
         for axis in AXES:
             self.restore_setting(model_key(axis), partial(self._apply_model, engine, axis))
             self.restore_setting(gains_key(axis), partial(self._apply_gains, engine, axis))
-        self.restore_setting(TRACKING_KEY, lambda value: self._apply_tracking(engine, value))
+        self.tracking_restored = self.restore_setting(
+            TRACKING_KEY, lambda value: self._apply_tracking(engine, value))
         return list(self.warnings)
 
     def restore_setting(self, key: str, apply: Callable[[Any], object], version: int = VERSION) -> bool:

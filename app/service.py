@@ -96,7 +96,7 @@ class Service:
             self.audio, self.audio_note = rig.attach_audio(self.engine, s, self.policy.policy)
             if self.audio is not None:
                 self.policy.listeners.append(self.audio.set_policy)
-            if s.track_on_start and self.audio is not None:
+            if s.track_on_start and self.audio is not None and not self.console.tracking_restored:
                 self.engine.set_tracking(True)  # a newcomer first sees the camera follow the talker
         if s.viewer_enabled:
             from app.viewer import RigViewer, array_is_head_mounted, load_mics

@@ -60,7 +60,8 @@ class Settings(BaseSettings):
     )
     audio_enabled: bool = Field(True, description="use the simulated room as the tracking target source")
     track_on_start: bool = Field(
-        True, description="a fresh start follows the talker (tracking on once the target source is attached)"
+        True, description="a fresh start follows the talker (tracking on once the target source is "
+        "attached; a stored tracking on/off, PUT /tracking, wins)"
     )
     array_file: Path | None = Field(
         None, description="microphone array JSON; default: the shipped 4-mic square"

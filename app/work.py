@@ -30,8 +30,9 @@ T = TypeVar("T")
 def _init_heavy_worker(effects: str) -> None:
     """A heavy worker's start: the site's effects, and background priority (like the job
     workers: on a busy machine the service's threads, and the loop, get the CPU first)."""
-    from app.workers import WORKER_NICE
+    from app.workers import WORKER_NICE, exit_with_parent
 
+    exit_with_parent()
     load_site_effects(effects)
     try:
         os.nice(WORKER_NICE)

@@ -27,6 +27,7 @@ from typing import Any, TypeVar
 T = TypeVar("T")
 JOB_SLOTS = 64
 WORKER_NICE = 5  # the workers' niceness above the service's
+PARENT_CHECK_S = 1.0  # how often a worker looks whether the service that spawned it is still there
 ProgressFn = Callable[[int, float, str], None]
 
 # In a worker: the queue and flags the pool handed it at start-up.
@@ -34,8 +35,24 @@ _progress_queue: Any = None
 _cancel_flags: Any = None
 
 
+def exit_with_parent(every_s: float = PARENT_CHECK_S) -> None:
+    """A worker's start: end this process once the service that spawned it is gone. A killed
+    service cannot shut its pools down; orphaned, a worker kept its memory and the
+    multiprocessing resource tracker alive, and the tracker then never unlinked the shared
+    memory of the loop's process (loop_process = true) either."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(every_s)
+        os._exit(0)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
 def _init_worker(progress_queue: Any, cancel_flags: Any, effects: str) -> None:
     global _progress_queue, _cancel_flags
+    exit_with_parent()
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # see tracker.cli
     if effects:  # the site's effect plug-ins, as in the service (a rig config may name them)
         from app.work import load_site_effects

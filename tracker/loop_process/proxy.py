@@ -41,7 +41,7 @@ from tracker.model_check import ModelCheck, check_model
 from tracker.plant.model import AxisModel
 from tracker.realtime import LoopTiming
 from tracker.targets import TargetSource, as_target
-from tracker.telemetry import EngineStatus, TelemetrySubscription
+from tracker.telemetry import EngineStatus, TelemetrySnapshot, TelemetrySubscription
 from tracker.workbench.measurements.data import Measurement
 
 CALL_TIMEOUT_S = 5.0
@@ -104,6 +104,7 @@ class LoopProcess:
         self._subs: set[TelemetrySubscription] = set()
         self._source: TargetSource | None = None
         self._source_name: str | None = None
+        self._last_snap: TelemetrySnapshot | None = None
         self._dead: str | None = None
         self._stop = False
         self._running = False
@@ -332,6 +333,7 @@ class LoopProcess:
             self._forward(cursor)
             if self._proc.exitcode not in (0, None) or (not self._stop and duration_s is None):
                 self._latch_death()
+                self._publish_death()
         finally:
             self._running = False
             for sub in list(self._subs):
@@ -342,7 +344,21 @@ class LoopProcess:
         for snap in snaps:
             for sub in list(self._subs):
                 sub.put(snap)
+        if snaps:
+            self._last_snap = snaps[-1]
         return cursor
+
+    def _publish_death(self) -> None:
+        """A last snapshot, a chunk after the last one, that says what status says: the axes
+        stopped (0 V, where they were) in mode fault; telemetry would otherwise end on a frame
+        of a healthy rig."""
+        last = self._last_snap
+        if last is None:
+            return
+        snap = dataclasses.replace(last, t_s=last.t_s + self.chunk_period_s, pan_u_v=0.0,
+                                   tilt_u_v=0.0, mode="fault")
+        for sub in list(self._subs):
+            sub.put(snap)
 
     def _push_target(self) -> None:
         source = self._source
