@@ -114,11 +114,19 @@ def cmd_generate(a: argparse.Namespace) -> int:
 
 
 def run_cli(tracker: str, args: list[str]) -> tuple[dict[str, Any], float]:
-    """Run ``tracker <args> --json``; returns (parsed JSON or {"error": ...}, wall seconds)."""
+    """Run ``tracker <args> --json``; returns (parsed JSON or {"error": ...}, wall seconds).
+
+    It runs in the tracker script's own folder, not this checkout's: a wrapper that runs another
+    checkout's code with ``python -m tracker`` and PYTHONPATH would otherwise import this
+    checkout's ``tracker`` (``-m`` puts the working directory first on the path)."""
     t0 = time.perf_counter()
     try:
         out = subprocess.run(
-            [tracker, *args, "--json"], capture_output=True, text=True, timeout=900, cwd=ROOT
+            [tracker, *args, "--json"],
+            capture_output=True,
+            text=True,
+            timeout=900,
+            cwd=Path(tracker).resolve().parent,
         )
     except subprocess.TimeoutExpired:
         return {"error": "timeout"}, time.perf_counter() - t0
@@ -542,7 +550,7 @@ def summarize_params(recs: list[dict[str, Any]]) -> str:
 
 
 def cmd_score(a: argparse.Namespace) -> int:
-    folder = Path(a.data) / a.split
+    folder = Path(a.data).resolve() / a.split
     csvs = sorted(folder.glob("*.csv"))
     if not csvs:
         print(f"no logs in {folder}", file=sys.stderr)
