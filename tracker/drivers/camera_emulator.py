@@ -9,7 +9,9 @@ gets the control reply "abnormal sequence number" (0F 01); an unknown payload ty
 message type" (0F 02) and a length field that disagrees with the datagram "message length
 error" (90 60 01 FF). Loss drops each datagram in each direction with probability ``loss``;
 latency delays the handling of each request by half of ``latency_s`` and each answer by the
-other half (so a round trip takes ``latency_s`` more).
+other half (so a round trip takes ``latency_s`` more). ``drop`` (a test hook) is asked about every
+UDP datagram, ``drop(direction, sequence, payload)`` with direction "in" or "out", and drops it
+when true, so a test can lose exactly one chosen message.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import asyncio
 import contextlib
 import random
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -83,6 +86,7 @@ class CameraEmulator:
         self._tcp: asyncio.Server | None = None
         self._tcp_writers: set[asyncio.StreamWriter] = set()
         self._ticker: asyncio.Task[None] | None = None
+        self.drop: Callable[[str, int, bytes], bool] | None = None
 
     @property
     def responder_stats(self) -> ResponderStats:
@@ -157,7 +161,8 @@ class CameraEmulator:
     def _sendto(self, addr: Any, ptype: int, seq: int, payload: bytes) -> None:
         if self._udp is None:
             return
-        if self.loss and self._rng.random() < self.loss:
+        if (self.loss and self._rng.random() < self.loss) or (
+                self.drop is not None and self.drop("out", seq, payload)):
             self.stats.dropped_out += 1
             return
         self._udp.sendto(vp.pack_message(ptype, seq, payload), addr)
@@ -172,7 +177,9 @@ class CameraEmulator:
     def datagram(self, data: bytes, addr: Any) -> None:
         """A datagram arrived (after loss, before latency)."""
         self.stats.received += 1
-        if self.loss and self._rng.random() < self.loss:
+        if (self.loss and self._rng.random() < self.loss) or (
+                self.drop is not None and len(data) >= vp.HEADER_LEN
+                and self.drop("in", vp.HEADER.unpack_from(data)[2], data[vp.HEADER_LEN:])):
             self.stats.dropped_in += 1
             return
         self._later(self.latency_s / 2, self._handle_datagram, data, addr)

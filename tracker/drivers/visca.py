@@ -272,6 +272,7 @@ class ViscaCamera(FaultLatch):
             "retransmits": stats.retransmits,
             "timeouts": stats.timeouts,
             "sequence_resets": stats.sequence_resets,
+            "completion_renewals": stats.completion_renewals,
             "connects": self.connects,
             "held_by": self._held_by,
             "last_error": self._last_error,

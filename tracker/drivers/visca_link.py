@@ -7,6 +7,13 @@ and its drive command every cycle). A request without an answer within ``timeout
 again *with the same number* (a camera that has seen it replays its answer instead of running
 it twice) up to ``retries`` times. A control reply "abnormal sequence number" (0F 01) makes
 the link send RESET (payload type 0x0200, 0x01), restart its numbers and send the request again.
+While waiting for a command's Completion the link re-asks with the same number every 0.5 s;
+a camera that has run the command and lost its Completion may answer that with "abnormal
+sequence number" (Sony's delivery-confirmation table: "the command has been performed; if the
+result by the Completion is needed, retransmit by updating the sequence number"), so the link
+then sends the command again under a new number, until ``completion_timeout_s`` has passed
+since the first send. Hence ``completion=True`` is only for commands that may run twice with
+the same effect (absolute moves, home, preset recall, zoom direct: the driver's only users).
 
 TCP (:class:`TcpLink`): no header and no numbers; replies come back in order, so one request
 is in flight at a time. Command completions arrive later, tagged with the socket the ACK named.
@@ -48,6 +55,7 @@ class LinkStats:
     retransmits: int = 0
     timeouts: int = 0
     sequence_resets: int = 0
+    completion_renewals: int = 0  # commands sent again under a new number for their Completion
     errors: int = 0
     rtt_s: deque[float] = field(default_factory=lambda: deque(maxlen=500))
 
@@ -128,6 +136,9 @@ class UdpLink(asyncio.DatagramProtocol):
                 pending = self._pending.get(msg.sequence)
                 if pending is not None and not pending.first.done():
                     pending.first.set_exception(_SequenceRejected())
+                elif pending is not None and pending.done is not None and not pending.done.done():
+                    # The ACK came: the camera ran the command and no longer knows its number.
+                    pending.done.set_exception(_CompletionForgotten())
             return
         if msg.payload_type != vp.PT_REPLY:
             return
@@ -204,6 +215,7 @@ class UdpLink(asyncio.DatagramProtocol):
         loop = asyncio.get_running_loop()
         ptype = vp.PT_INQUIRY if inquiry else vp.PT_COMMAND
         sequence_tries = 2
+        deadline = time.monotonic() + completion_timeout_s  # for the Completion, over every renewal
         while True:
             seq = self._next_seq()
             pending = _Pending(packet, loop.create_future(), loop.create_future() if completion else None)
@@ -212,8 +224,10 @@ class UdpLink(asyncio.DatagramProtocol):
                 reply = await self._send_until_answered(ptype, seq, pending, timeout_s, retries)
                 if pending.done is None or reply.kind != "ack":
                     return _raise_if_error(reply, packet)
-                done = await self._await_completion(ptype, seq, pending, completion_timeout_s)
+                done = await self._await_completion(ptype, seq, pending, deadline, completion_timeout_s)
                 return _raise_if_error(done, packet)
+            except _CompletionForgotten:
+                self.stats.completion_renewals += 1  # send it again under a new number
             except _SequenceRejected:
                 sequence_tries -= 1
                 if sequence_tries < 0:
@@ -243,12 +257,13 @@ class UdpLink(asyncio.DatagramProtocol):
 
 
     async def _await_completion(
-        self, ptype: int, seq: int, pending: _Pending, completion_timeout_s: float
+        self, ptype: int, seq: int, pending: _Pending, deadline: float, completion_timeout_s: float
     ) -> vp.Reply:
-        """Wait for the Completion; every 0.5 s without it, ask again with the same number (a
-        lost Completion is replayed by the camera; a motion it already runs is not restarted)."""
+        """Wait for the Completion until ``deadline`` (monotonic); every 0.5 s without it, ask
+        again with the same number (a camera that still knows the number replays a lost
+        Completion and does not restart a motion it already runs; one that does not answers
+        "abnormal sequence number", raised here as _CompletionForgotten)."""
         assert pending.done is not None
-        deadline = time.monotonic() + completion_timeout_s
         while True:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -264,6 +279,11 @@ class UdpLink(asyncio.DatagramProtocol):
 
 class _SequenceRejected(Exception):
     """The camera answered 'abnormal sequence number' (internal: the link resets and retries)."""
+
+
+class _CompletionForgotten(Exception):
+    """The camera answered 'abnormal sequence number' to a re-ask for a Completion after its ACK
+    (internal: the link sends the command again under a new number)."""
 
 
 class TcpLink:

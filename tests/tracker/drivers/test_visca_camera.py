@@ -138,6 +138,40 @@ async def test_retransmission_carries_commands_through_20_percent_loss() -> None
         assert sorted(emu.twin.presets) == list(range(15))
 
 
+async def test_a_completion_lost_and_forgotten_by_the_camera_is_asked_for_under_a_new_number() -> None:
+    # VISCA over IP: when a command's Completion is lost, the retransmission (same number) may be
+    # answered "abnormal sequence number" (the camera ran it and no longer knows the number); the
+    # controller must send the command again with a new number. Here the emulator loses exactly
+    # the move's Completion and holds back its re-asks until 40 newer messages pushed the number
+    # out of its window of 32 (the supervisor's 25 Hz polls do that in 1.3 s on their own).
+    async with camera() as (cam, emu):
+        move_seqs: list[int] = []
+        lost: list[int] = []
+        hold = True
+
+        def drop(direction: str, seq: int, payload: bytes) -> bool:
+            if direction == "in" and payload[1:4] == b"\x01\x06\x02":  # AbsolutePosition
+                if seq in lost and hold:
+                    return True  # the re-ask, until the number is forgotten
+                if seq not in move_seqs:
+                    move_seqs.append(seq)
+            if direction == "out" and seq in move_seqs and not lost and payload[1] >> 4 == 0x5:
+                lost.append(seq)  # the first move's Completion
+                return True
+            return False
+
+        emu.drop = drop
+        move = asyncio.create_task(cam.move_absolute(math.radians(15.0), 0.0, timeout_s=5.0))
+        await until(lambda: lost, 5.0, "the move's Completion lost")
+        for _ in range(40):
+            await cam.inquire_power()
+        hold = False
+        assert await asyncio.wait_for(move, 6.0) == (math.radians(15.0), 0.0)
+        assert emu.stats.sequence_errors >= 1  # the camera refused the old number ...
+        assert len(move_seqs) >= 2 and cam.describe()["completion_renewals"] >= 1  # ... and sent anew
+        assert console_angles(emu)[0] == pytest.approx(math.radians(15.0), abs=0.1 * DEG)
+
+
 async def test_sequence_numbers_are_reset_when_the_camera_refuses_them() -> None:
     async with camera() as (cam, emu):
         resets = cam.describe()["sequence_resets"]
