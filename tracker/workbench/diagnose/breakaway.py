@@ -66,13 +66,24 @@ class BreakAway:
         return self.static_excess_nm / self.static_excess_se if self.static_excess_se > 0 else 0.0
 
 
-def _other_torque(model: AxisModel, theta: FloatArray) -> FloatArray:
+def other_torque(model: AxisModel, theta: FloatArray) -> FloatArray:
     """Direction-independent static torques (offset, gravity, ripple, generic effects) at θ."""
     out = np.zeros_like(theta)
     for e in ("offset", "gravity", "ripple", *generic_effects()):
         if model.has(e):
             out += CATALOGUE[e].torque_nm(model.params, theta, np.zeros_like(theta))
     return out
+
+
+def coulomb_around_sliding(model: AxisModel, sliding_coulomb_nm: float) -> tuple[float, float]:
+    """The model's Coulomb torques (positive, negative direction; N·m) moved so that their mean
+    is the sliding Coulomb the regression measured on moving data (the model's own may have
+    absorbed part of a missing break-away); a direction-dependent split is kept around it."""
+    p = model.params
+    fc_pos = float(p["coulomb.torque"])
+    fc_neg = float(p["coulomb_asymmetry.negative"]) if model.has("coulomb_asymmetry") else fc_pos
+    shift = sliding_coulomb_nm - 0.5 * (fc_pos + fc_neg)
+    return fc_pos + shift, fc_neg + shift
 
 
 def _first_crossing(theta: FloatArray, start: float, direction: float, distance: float) -> float:
@@ -183,7 +194,7 @@ def _break_torque_nm(
         if rigid.has(effect):
             rigid = rigid.without_effect(effect)
     theta0 = float(meas.theta_rad[first_moved - 1])
-    other = float(_other_torque(model, np.array([theta0]))[0])
+    other = float(other_torque(model, np.array([theta0]))[0])
     delay = model.params.get("delay.seconds", 0.0) / dt if model.has("delay") else 0.0
     level = math.nan
     for _ in range(TRAVEL_ITERATIONS):

@@ -29,9 +29,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from tracker.plant.effects import CATALOGUE, generic_effects
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
+from tracker.workbench.diagnose.breakaway import coulomb_around_sliding, other_torque
 from tracker.workbench.measurements.idim import Regression, Signals
 
 FloatArray = NDArray[np.float64]
@@ -82,15 +82,6 @@ class RestHolds:
             f"{100 * (self.level_nm - fc) / fc:.0f} % above Coulomb; chance {self.p_value:.1g}): "
             "static friction"
         )
-
-
-def _other_torque(model: AxisModel, theta: FloatArray) -> FloatArray:
-    """Direction-independent static torques (offset, gravity, ripple, generic effects) at θ."""
-    out = np.zeros_like(theta)
-    for e in ("offset", "gravity", "ripple", *generic_effects()):
-        if model.has(e):
-            out += CATALOGUE[e].torque_nm(model.params, theta, np.zeros_like(theta))
-    return out
 
 
 def slow_residual_nm(sig: Signals, reg: Regression) -> float:
@@ -195,10 +186,7 @@ def analyse_rests(
     if count <= 0 or sliding_coulomb_nm <= 0:
         return None
     p = model.params
-    fc_model = float(p["coulomb.torque"])
-    fc_neg_model = float(p["coulomb_asymmetry.negative"]) if model.has("coulomb_asymmetry") else fc_model
-    shift = sliding_coulomb_nm - 0.5 * (fc_model + fc_neg_model)
-    fc = (fc_model + shift, fc_neg_model + shift)
+    fc = coulomb_around_sliding(model, sliding_coulomb_nm)
     j = float(p["inertia.J"])
     b = float(p["viscous.b"])
     coulomb_se = 0.0
@@ -209,7 +197,7 @@ def analyse_rests(
     margin = stiction_effect.ESTABLISHED_EXCESS_RATIO * sliding_coulomb_nm + Z_DISTURBANCE * math.hypot(
         disturbance, coulomb_se
     )
-    torque = model.gain_nm_per_v * u - _other_torque(model, theta)
+    torque = model.gain_nm_per_v * u - other_torque(model, theta)
     if model.has("delay"):
         lag = int(round(p["delay.seconds"] / dt))
         if lag > 0:

@@ -39,7 +39,7 @@ from scipy import stats
 
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.rests import _other_torque
+from tracker.workbench.diagnose.breakaway import coulomb_around_sliding, other_torque
 from tracker.workbench.measurements.idim import Signals
 
 FloatArray = NDArray[np.float64]
@@ -192,12 +192,9 @@ def analyse_start_lags(
     if count <= 0 or sliding_coulomb_nm <= 0:
         return None
     p = model.params
-    fc_model = float(p["coulomb.torque"])
-    fc_neg_model = float(p["coulomb_asymmetry.negative"]) if model.has("coulomb_asymmetry") else fc_model
-    shift = sliding_coulomb_nm - 0.5 * (fc_model + fc_neg_model)
-    fc = (fc_model + shift, fc_neg_model + shift)
+    fc = coulomb_around_sliding(model, sliding_coulomb_nm)
     j, b = float(p["inertia.J"]), float(p["viscous.b"])
-    torque = model.gain_nm_per_v * sig.u_v - _other_torque(model, theta)
+    torque = model.gain_nm_per_v * sig.u_v - other_torque(model, theta)
     if model.has("delay"):
         # The torque as it reaches the axis: the lag left is what the model's delay misses.
         lag = int(round(float(p["delay.seconds"]) / dt))
