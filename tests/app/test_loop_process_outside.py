@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from tests.app.conftest import make_rig
+from tests.processes import process_gone
 from tests.tracker.audio.conftest import FS_HZ, example_array, free_field
 from tracker.audio.sources import write_wav
 
@@ -79,13 +80,6 @@ if __name__ == "__main__":
 """
 
 
-def _gone(pid: int) -> bool:
-    try:
-        return "State:\tZ" in Path(f"/proc/{pid}/status").read_text()
-    except FileNotFoundError:
-        return True
-
-
 def test_a_killed_service_leaves_no_worker_and_no_shared_memory(tmp_path: Path) -> None:
     """Bug: after a ``kill -9`` of the service the loop's process stopped, but the heavy and job
     workers (spawned pools) lived on as orphans, and with them the resource tracker, which then
@@ -99,19 +93,19 @@ def test_a_killed_service_leaves_no_worker_and_no_shared_memory(tmp_path: Path) 
         loop_pid, heavy_pid, job_pid, shm = service.stdout.readline().split()
         pids = [int(loop_pid), int(heavy_pid), int(job_pid)]
         segment = Path("/dev/shm") / shm
-        assert segment.exists() and not any(_gone(p) for p in pids)
+        assert segment.exists() and not any(process_gone(p) for p in pids)
         os.kill(service.pid, signal.SIGKILL)
         service.wait(10)
         end = time.monotonic() + 10.0
-        while (segment.exists() or not all(_gone(p) for p in pids)) and time.monotonic() < end:
+        while (segment.exists() or not all(process_gone(p) for p in pids)) and time.monotonic() < end:
             time.sleep(0.1)
-        assert [p for p in pids if not _gone(p)] == [], "a process outlived the service"
+        assert [p for p in pids if not process_gone(p)] == [], "a process outlived the service"
         assert not segment.exists(), f"{segment} outlived the service"
     finally:
         if service.poll() is None:
             service.kill()
         for p in pids if "pids" in locals() else []:
-            if not _gone(p):
+            if not process_gone(p):
                 os.kill(p, signal.SIGKILL)
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.processes import process_gone
 from tracker.engine import Engine, EngineConfig
 from tracker.errors import ConfigError, ModelRefused
 from tracker.loop_process.shared import RING_SLOTS, SharedLoop
@@ -120,13 +121,6 @@ if __name__ == "__main__":
 """
 
 
-def _gone(pid: int) -> bool:
-    try:
-        return "State:\tZ" in Path(f"/proc/{pid}/status").read_text()
-    except FileNotFoundError:
-        return True
-
-
 def test_the_loops_process_stops_when_the_service_dies(tmp_path: Path) -> None:
     script = tmp_path / "service.py"
     script.write_text(SERVICE.format(root=str(ROOT)))
@@ -135,13 +129,13 @@ def test_the_loops_process_stops_when_the_service_dies(tmp_path: Path) -> None:
         assert service.stdout is not None
         child = int(service.stdout.readline())
         time.sleep(0.3)
-        assert not _gone(child)
+        assert not process_gone(child)
         os.kill(service.pid, signal.SIGKILL)
         service.wait(10)
         end = time.monotonic() + 10.0
-        while not _gone(child) and time.monotonic() < end:
+        while not process_gone(child) and time.monotonic() < end:
             time.sleep(0.05)
-        assert _gone(child), "the loop's process outlived the service"
+        assert process_gone(child), "the loop's process outlived the service"
     finally:
         if service.poll() is None:
             service.kill()
