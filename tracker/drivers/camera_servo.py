@@ -83,7 +83,10 @@ def axis_drive(
             braking = abs(rate_rad_s) + limit_speed_rad_s(abs(e) - 0.5 * dead, brake, dead_time)
     lo, hi = limits_rad
     room = hi - position_rad if v > 0 else position_rad - lo
-    allowed = limit_speed_rad_s(room - 0.5 * dead, brake, dead_time)
+    # Toward a soft limit the stop command may itself come one period late (a host under load
+    # misses a command period now and then; the driver counts them): plan for that too. Without
+    # it a late cycle ran the emulated head 0.007 deg past the limit at the slowest code.
+    allowed = limit_speed_rad_s(room - 0.5 * dead, brake, dead_time + period_s)
     speed = min(abs(v), allowed, braking, profile.max_speed_rad_s(axis))
     if speed < slowest:
         if allowed < slowest or (target_rad is None and speed < 0.5 * slowest):
