@@ -211,10 +211,8 @@ def diagnose(
     if "quantization" in OPTIONAL_EFFECTS and not model.has("quantization"):
         candidates.append(_quantization_candidate(ctx, current.fit_percent, base_score))
     verdict = candidates[0].effect if candidates and candidates[0].significant else None
-    notes = notes_for(candidates, ctx, verdict)
     told = look_alike_notes(rows)
-    if told:
-        notes = tuple(n for n in notes if "look alike over" not in n) + told
+    notes = notes_for(candidates, ctx, verdict, compared=bool(told)) + told
     small = [(r.effect, negligible(r.effect, r.model, ctx)) for r in rows if r.passed and not r.significant]
     notes += tuple(f"{effect} is detectable but small: {why}" for effect, why in small if why)
     far_off = refit_score.sse < current.sse and current.sse > FAR_OFF_RATIO * refit_score.sse

@@ -268,8 +268,13 @@ def experiment_for(effect: str) -> str | None:
     return e.experiment if e is not None else None
 
 
-def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: str | None) -> tuple[str, ...]:
-    """Ambiguities between significant candidates and the experiments that would resolve them."""
+def notes_for(
+    candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: str | None, compared: bool = False
+) -> tuple[str, ...]:
+    """Ambiguities between significant candidates and the experiments that would resolve them.
+
+    ``compared``: a held-out comparison of gravity with a bias torque has its own notes
+    (:func:`tracker.workbench.diagnose.judgement.look_alike_notes`), which replace the general one."""
     sig_names = [c.effect for c in candidates if c.significant]
     by = {c.effect: c for c in candidates}
     notes: list[str] = []
@@ -319,7 +324,7 @@ def notes_for(candidates: Sequence[Candidate], ctx: EvidenceContext, verdict: st
             )
     if {"backlash", "compliance"} <= set(sig_names):
         notes.append("backlash and compliance both hide a load state; " + EXPERIMENTS["compliance"])
-    if {"gravity", "offset"} <= set(sig_names) and float(np.ptp(ctx.sig.theta_rad)) < 1.5:
+    if {"gravity", "offset"} <= set(sig_names) and float(np.ptp(ctx.sig.theta_rad)) < 1.5 and not compared:
         notes.append(
             f"gravity and a bias torque look alike over the {np.ptp(ctx.sig.theta_rad):.2f} rad this run "
             "covers; " + EXPERIMENTS["gravity"]
