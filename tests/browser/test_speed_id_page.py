@@ -119,15 +119,19 @@ def test_the_friction_id_card_follows_its_job_on_the_simulated_rig(browser, serv
     assert not errors, errors
 
 
-def test_speed_id_runs_on_the_camera(browser, camera_server: Server) -> None:  # type: ignore[no-untyped-def]
-    ok = False
-    for _ in range(100):  # connected and enabled (hold)
-        st = camera_server.api("GET", "/status").json()
+def _wait_connected_and_holding(server: Server, timeout_s: float) -> None:
+    """Until the rig's driver is connected and the engine holds it (enabled)."""
+    end = time.monotonic() + timeout_s
+    while True:
+        st = server.api("GET", "/status").json()
         if st["driver"]["state"] == "connected" and st["mode"] == "hold":
-            ok = True
-            break
+            return
+        assert time.monotonic() < end, st
         time.sleep(0.1)
-    assert ok, st
+
+
+def test_speed_id_runs_on_the_camera(browser, camera_server: Server) -> None:  # type: ignore[no-untyped-def]
+    _wait_connected_and_holding(camera_server, 10)
     ctx, pg, errors = open_friction_page(browser, camera_server)
     pg.wait_for_selector("#sid-card:not([hidden])", timeout=T)
     assert "visca+udp://127.0.0.1" in pg.inner_text("#sid-driver")
@@ -162,14 +166,7 @@ def test_the_live_rig_is_offered_only_on_a_serial_rig(browser, server: Server) -
                    "showed 'running' or 'cancelled' in 30 s; passes alone and in tests/browser) - "
                    "under investigation, issue 10")
 def test_the_live_sweep_runs_on_the_serial_rig_and_cancels(browser, serial_server: Server) -> None:  # type: ignore[no-untyped-def]
-    ok = False
-    for _ in range(150):  # connected and enabled (hold)
-        st = serial_server.api("GET", "/status").json()
-        if st["driver"]["state"] == "connected" and st["mode"] == "hold":
-            ok = True
-            break
-        time.sleep(0.1)
-    assert ok, st
+    _wait_connected_and_holding(serial_server, 15)
     ctx, pg, errors = open_friction_page(browser, serial_server)
     pg.wait_for_function("!document.querySelector('#fric-live').hidden", timeout=T)
     assert "serial://" in pg.inner_text("#fric-live")

@@ -15,29 +15,20 @@ from functools import cache
 
 import numpy as np
 
-from tests.truthgen.axis import TrueAxis
-from tests.truthgen.excitation import disturbance
+from tests.tracker.workbench.diagnose.step_logs import (
+    COULOMB_NM,
+    RATE_HZ,
+    base_model,
+    regression_base,
+    step_log,
+)
 from tests.truthgen.presets import GAIN_NM_PER_V
-from tests.truthgen.run import replay
-from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.breakaway import analyse_breakaway
 from tracker.workbench.diagnose.diagnose import Diagnosis, diagnose
-from tracker.workbench.diagnose.judgement import with_values
 from tracker.workbench.diagnose.rests import RestHolds, analyse_rests
-from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
 from tracker.workbench.measurements.data import Measurement
-from tracker.workbench.measurements.idim import prepare_signals
 
-RATE_HZ = 1000.0
-COULOMB_NM = 0.055
 STATIC_NM = 0.11  # break-away twice Coulomb
-PARAMS = {
-    "inertia.J": 0.0015,
-    "viscous.b": 0.0005,
-    "coulomb.torque": COULOMB_NM,
-    "inertia.motor_fraction": 0.15,
-    "quantization.step": 2 * np.pi / 4096,
-}
 
 
 def _steps(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -58,36 +49,19 @@ def _steps(rng: np.random.Generator, n: int) -> np.ndarray:
 @cache
 def _log(stiction: bool, seed: int = 7) -> Measurement:
     rng = np.random.default_rng(seed)
-    n = int(20 * RATE_HZ)
-    u = _steps(rng, n)
-    dist = disturbance(rng, n, 1.0 / RATE_HZ, 1.5e-3, 2.0)
-    params = dict(PARAMS)
-    hidden: list[str] = []
-    if stiction:
-        params.update({"stiction.static_torque": STATIC_NM, "stiction.velocity": 0.05})
-        hidden = ["stiction"]
-    axis = TrueAxis(GAIN_NM_PER_V, params, hidden, "karnopp", {})
-    log = replay(axis, u, RATE_HZ, latency_samples=1, dist=dist)
-    return Measurement(log.t, log.u, log.theta, f"steps-{'stiction' if stiction else 'clean'}")
-
-
-def _model() -> AxisModel:
-    return AxisModel.for_axis("pan", gain_nm_per_v=GAIN_NM_PER_V)
+    u = _steps(rng, int(20 * RATE_HZ))
+    hidden = {"stiction.static_torque": STATIC_NM, "stiction.velocity": 0.05} if stiction else {}
+    return step_log(rng, u, hidden, 1.5e-3, f"steps-{'stiction' if stiction else 'clean'}")
 
 
 def _rests(meas: Measurement) -> RestHolds | None:
-    model = _model()
-    sig = prepare_signals(meas)
-    reg = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"]).fit(
-        Structure.of(model)
-    )
-    values, _ = model_params(model, Structure.of(model), reg)
-    return analyse_rests(sig, reg, with_values(model, values), float(values["coulomb.torque"]))
+    sig, reg, model, sliding_coulomb_nm = regression_base(meas)
+    return analyse_rests(sig, reg, model, sliding_coulomb_nm)
 
 
 @cache
 def _diagnosis(stiction: bool) -> Diagnosis:
-    return diagnose(_log(stiction), _model())
+    return diagnose(_log(stiction), base_model())
 
 
 def test_rests_that_held_between_coulomb_and_break_away_establish_stiction() -> None:
@@ -106,7 +80,7 @@ def test_the_clean_twin_holds_nothing() -> None:
 
 def test_steps_give_the_break_away_analysis_no_creeping_start() -> None:
     """Why the rests are needed: no start from rest creeps up to the break-away."""
-    ba = analyse_breakaway(_log(True), _model())
+    ba = analyse_breakaway(_log(True), base_model())
     assert ba is None or ba.count < 4
 
 

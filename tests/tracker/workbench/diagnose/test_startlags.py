@@ -14,29 +14,16 @@ from functools import cache
 
 import numpy as np
 
+from tests.tracker.workbench.diagnose.step_logs import COULOMB_NM, RATE_HZ, regression_base, step_log
 from tests.truthgen import matrix
-from tests.truthgen.axis import TrueAxis
-from tests.truthgen.excitation import disturbance
 from tests.truthgen.presets import GAIN_NM_PER_V
-from tests.truthgen.run import replay
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.diagnose import diagnose
 from tracker.workbench.diagnose.judgement import with_values
-from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
 from tracker.workbench.diagnose.startlags import MIN_STARTS, StartLags, analyse_start_lags
 from tracker.workbench.measurements.data import Measurement
-from tracker.workbench.measurements.idim import prepare_signals
 
-RATE_HZ = 1000.0
-COULOMB_NM = 0.055
 DELAY_S = 0.012
-PARAMS = {
-    "inertia.J": 0.0015,
-    "viscous.b": 0.0005,
-    "coulomb.torque": COULOMB_NM,
-    "inertia.motor_fraction": 0.15,
-    "quantization.step": 2 * np.pi / 4096,
-}
 
 
 def _steps(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -53,27 +40,14 @@ def _steps(rng: np.random.Generator, n: int) -> np.ndarray:
 @cache
 def _log(delay: bool, seed: int = 11) -> Measurement:
     rng = np.random.default_rng(seed)
-    n = int(20 * RATE_HZ)
-    u = _steps(rng, n)
-    dist = disturbance(rng, n, 1.0 / RATE_HZ, 1.0e-3, 2.0)
-    params = dict(PARAMS)
-    hidden: list[str] = []
-    if delay:
-        params["delay.seconds"] = DELAY_S
-        hidden = ["delay"]
-    axis = TrueAxis(GAIN_NM_PER_V, params, hidden, "karnopp", {})
-    log = replay(axis, u, RATE_HZ, latency_samples=1, dist=dist)
-    return Measurement(log.t, log.u, log.theta, f"steps-{'delay' if delay else 'clean'}")
+    u = _steps(rng, int(20 * RATE_HZ))
+    hidden = {"delay.seconds": DELAY_S} if delay else {}
+    return step_log(rng, u, hidden, 1.0e-3, f"steps-{'delay' if delay else 'clean'}")
 
 
 def _lags(meas: Measurement) -> StartLags | None:
-    model = AxisModel.for_axis("pan", gain_nm_per_v=GAIN_NM_PER_V)
-    sig = prepare_signals(meas)
-    reg = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"]).fit(
-        Structure.of(model)
-    )
-    values, _ = model_params(model, Structure.of(model), reg)
-    return analyse_start_lags(sig, with_values(model, values), float(values["coulomb.torque"]))
+    sig, _, model, sliding_coulomb_nm = regression_base(meas)
+    return analyse_start_lags(sig, model, sliding_coulomb_nm)
 
 
 def test_a_delay_makes_every_start_late_by_the_same_time() -> None:
@@ -118,15 +92,9 @@ def test_closed_loop_delay_is_named_delay_not_stiction() -> None:
 
 def test_with_the_delay_in_the_model_no_lag_is_left() -> None:
     """The second round: the model has the delay, so the starts come on time again."""
-    meas = _log(True)
-    model = AxisModel.for_axis("pan", gain_nm_per_v=GAIN_NM_PER_V)
-    sig = prepare_signals(meas)
-    reg = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"]).fit(
-        Structure.of(model)
-    )
-    values, _ = model_params(model, Structure.of(model), reg)
-    delayed = with_values(model, {**values, "delay.seconds": DELAY_S + 1.0 / RATE_HZ}, add="delay")
-    lags = analyse_start_lags(sig, delayed, float(values["coulomb.torque"]))
+    sig, _, model, sliding_coulomb_nm = regression_base(_log(True))
+    delayed = with_values(model, {"delay.seconds": DELAY_S + 1.0 / RATE_HZ}, add="delay")
+    lags = analyse_start_lags(sig, delayed, sliding_coulomb_nm)
     assert lags is not None
     assert not lags.favours_delay()
     assert lags.delay_s < 3.0 / RATE_HZ
