@@ -32,7 +32,7 @@ from typing import Any
 
 from tracker.engine import Engine
 from tracker.errors import ConfigError
-from tracker.loop_process.shared import PushedTarget, SharedLoop
+from tracker.loop_process.shared import SharedLoop
 from tracker.loop_process.wire import Call, CarriedError, Ready, Reply
 from tracker.realtime import SPIN_S
 from tracker.targets import Target
@@ -49,11 +49,7 @@ class PushedSource:
         self._shared = shared
 
     def target_at(self, t_s: float) -> Target | None:
-        pushed: PushedTarget | None = self._shared.read_target()
-        if pushed is None:
-            return None
-        return Target(pushed.pan_rad, pushed.tilt_rad, pushed.talker, pushed.azimuth_rad,
-                      pushed.elevation_rad)
+        return self._shared.read_target()
 
 
 def command_table(engine: Engine, shared: SharedLoop) -> dict[str, Callable[..., Any]]:

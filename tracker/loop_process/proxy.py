@@ -35,7 +35,7 @@ from tracker.control.limits import SoftLimits
 from tracker.engine import Engine
 from tracker.errors import ConfigError, DriverFault, TrackerError
 from tracker.loop_process.child import serve
-from tracker.loop_process.shared import PushedTarget, SharedLoop
+from tracker.loop_process.shared import SharedLoop
 from tracker.loop_process.wire import Call, Ready, Reply
 from tracker.model_check import ModelCheck, check_model
 from tracker.plant.model import AxisModel
@@ -370,8 +370,7 @@ class LoopProcess:
             heard = as_target(source.target_at(t_s), self._source_name or "source")
         except TrackerError:
             heard = None
-        self._shared.write_target(None if heard is None else PushedTarget(
-            heard.pan_rad, heard.tilt_rad, heard.talker, heard.azimuth_rad, heard.elevation_rad))
+        self._shared.write_target(heard)
 
     async def _stop_process(self, timeout_s: float = 3.0) -> None:
         with contextlib.suppress(DriverFault):

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from multiprocessing import shared_memory
 from typing import Any
 
@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tracker.realtime import GAP_BUCKETS, LoopTiming
+from tracker.targets import Target
 from tracker.telemetry import EngineStatus, TelemetrySnapshot
 
 MODES = ("tracking", "manual", "hold", "disabled", "fault")  # tracker.engine.MODES, by index
@@ -62,17 +63,6 @@ class StatusText:
     source: str | None = None
 
 
-@dataclass(frozen=True, slots=True)
-class PushedTarget:
-    """A talker tracker's target, pushed by the service (angles in rad)."""
-
-    pan_rad: float
-    tilt_rad: float
-    talker: str | None = None
-    azimuth_rad: float | None = None
-    elevation_rad: float | None = None
-
-
 def _nan_if_none(x: float | None) -> float:
     return math.nan if x is None else float(x)
 
@@ -96,7 +86,7 @@ class SharedLoop:
                                       offset=8 * _FLOATS + _TEXT_BYTES)
         self._last_text: StatusText | None = None
         self._target_seq_seen = 0.0
-        self._pushed: PushedTarget | None = None
+        self._pushed: Target | None = None
 
     @classmethod
     def create(cls) -> SharedLoop:
@@ -157,21 +147,19 @@ class SharedLoop:
             _write_json(f, self._text, _TEXT_SEQ, _TEXT_LEN,
                         {"faults": list(text.faults), "talker": text.talker, "source": text.source})
 
-    def read_target(self) -> PushedTarget | None:
+    def read_target(self) -> Target | None:
         """The service's latest target (None: none yet, or the source said nothing)."""
         seq = self._f[_TARGET_SEQ]
         if seq != self._target_seq_seen:
             data = _read_json(self._f, self._target_buf, _TARGET_SEQ, _TARGET_LEN)
             if data is not None:
                 self._target_seq_seen = seq
-                self._pushed = None if data.get("pan_rad") is None else PushedTarget(**data)
+                self._pushed = None if data.get("pan_rad") is None else Target(**data)
         return self._pushed
 
     # -- the service's side --------------------------------------------------------------------
-    def write_target(self, target: PushedTarget | None) -> None:
-        data: dict[str, Any] = {} if target is None else {
-            "pan_rad": target.pan_rad, "tilt_rad": target.tilt_rad, "talker": target.talker,
-            "azimuth_rad": target.azimuth_rad, "elevation_rad": target.elevation_rad}
+    def write_target(self, target: Target | None) -> None:
+        data: dict[str, Any] = {} if target is None else asdict(target)
         _write_json(self._f, self._target_buf, _TARGET_SEQ, _TARGET_LEN, data)
 
     def ring_head(self) -> int:
