@@ -104,6 +104,55 @@ def test_the_loops_process_follows_a_target_pushed_by_the_service() -> None:
     assert mode == "tracking"
 
 
+class CountingTarget:
+    """A talker tracker that counts how often it is asked."""
+
+    name = "counting"
+
+    def __init__(self, pan_rad: float, tilt_rad: float) -> None:
+        self.asked = 0
+        self.where = (pan_rad, tilt_rad)
+
+    def target_at(self, t_s: float) -> tuple[float, float]:
+        self.asked += 1
+        return self.where
+
+
+def test_the_talker_tracker_is_not_asked_while_tracking_is_off_and_no_old_target_is_kept() -> None:
+    from tracker.loop_process.proxy import LoopProcess
+
+    async def scenario() -> tuple[int, int, float]:
+        proc = LoopProcess(build_twin, 0.01)
+        task = asyncio.create_task(proc.run())
+        source = CountingTarget(0.3, 0.0)
+        try:
+            proc.set_target_source(source)
+            proc.set_tracking(True)
+            while source.asked == 0:
+                await asyncio.sleep(0.01)
+            proc.set_tracking(False)
+            await asyncio.sleep(0.1)  # a chunk for the status to say tracking is off
+            asked_before = source.asked
+            await asyncio.sleep(0.5)
+            asked_off = source.asked - asked_before
+            pushed_off = proc._shared.read_target()
+            source.where = (-0.2, 0.0)
+            proc.set_tracking(True)
+            end = time.monotonic() + 10.0
+            while time.monotonic() < end and abs(proc.status().pan_rad + 0.2) > 0.005:
+                await asyncio.sleep(0.05)
+            return asked_off, source.asked, proc.status().pan_rad if pushed_off is None else math.nan
+        finally:
+            proc.stop()
+            await task
+            await proc.close()
+
+    asked_off, asked, pan = asyncio.run(scenario())
+    assert asked_off == 0, f"asked {asked_off} times in 0.5 s with tracking off"
+    assert asked > 1
+    assert pan == pytest.approx(-0.2, abs=0.005)  # the target withdrawn, then the new one followed
+
+
 SERVICE = """
 import asyncio, sys
 sys.path.insert(0, {root!r})

@@ -104,6 +104,7 @@ class LoopProcess:
         self._subs: set[TelemetrySubscription] = set()
         self._source: TargetSource | None = None
         self._source_name: str | None = None
+        self._target_withdrawn = False
         self._last_snap: TelemetrySnapshot | None = None
         self._dead: str | None = None
         self._stop = False
@@ -365,6 +366,14 @@ class LoopProcess:
         if source is None:
             return
         read = self._shared.read_status()
+        if read is not None and not read[0].tracking:
+            # Not asked while tracking is off, as the engine in a thread does not ask it; the
+            # last target is withdrawn so that tracking turned on again never starts from it.
+            if not self._target_withdrawn:
+                self._shared.write_target(None)
+                self._target_withdrawn = True
+            return
+        self._target_withdrawn = False
         t_s = (read[0].t_s if read is not None else 0.0) + self.chunk_period_s
         try:
             heard = as_target(source.target_at(t_s), self._source_name or "source")
