@@ -26,8 +26,17 @@ class PidDerivOnMeasurement:
     """PI-D: P and I on the error, D on the filtered measurement, conditional-integration anti-windup,
     optional Coulomb feed-forward on the reference's velocity sign and a PRBS dither."""
 
-    def __init__(self, nom: Nominal, bandwidth_rad_s: float, period_s: float, u_max_v: float,
-                 ref_rad: np.ndarray, ref_vel: np.ndarray, dither_v: np.ndarray, coulomb_ff: bool) -> None:
+    def __init__(
+        self,
+        nom: Nominal,
+        bandwidth_rad_s: float,
+        period_s: float,
+        u_max_v: float,
+        ref_rad: np.ndarray,
+        ref_vel: np.ndarray,
+        dither_v: np.ndarray,
+        coulomb_ff: bool,
+    ) -> None:
         w = bandwidth_rad_s
         self.kp = 3 * w * w * nom.j_kgm2 / nom.gain_nm_per_v
         self.ki = w**3 * nom.j_kgm2 / nom.gain_nm_per_v
@@ -57,8 +66,16 @@ class VelocityCascade:
     """Outer P position loop → speed reference (plus the reference's speed); inner PI speed loop on
     a speed estimated from the encoder by a backward difference and a first-order low-pass."""
 
-    def __init__(self, nom: Nominal, inner_rad_s: float, period_s: float, u_max_v: float,
-                 ref_rad: np.ndarray, ref_vel: np.ndarray, dither_v: np.ndarray) -> None:
+    def __init__(
+        self,
+        nom: Nominal,
+        inner_rad_s: float,
+        period_s: float,
+        u_max_v: float,
+        ref_rad: np.ndarray,
+        ref_vel: np.ndarray,
+        dither_v: np.ndarray,
+    ) -> None:
         self.kpv = inner_rad_s * nom.j_kgm2 / nom.gain_nm_per_v
         self.kiv = self.kpv * inner_rad_s / 5
         self.kpp = inner_rad_s / 5
@@ -87,8 +104,16 @@ class StateFeedback:
     """u = k1 (r − θ̂) + k2 (ṙ − ω̂) + ki ∫(r − θ) with an alpha-beta observer for θ̂, ω̂
     (pole placement on the nominal model: a triple pole at −w)."""
 
-    def __init__(self, nom: Nominal, bandwidth_rad_s: float, period_s: float, u_max_v: float,
-                 ref_rad: np.ndarray, ref_vel: np.ndarray, dither_v: np.ndarray) -> None:
+    def __init__(
+        self,
+        nom: Nominal,
+        bandwidth_rad_s: float,
+        period_s: float,
+        u_max_v: float,
+        ref_rad: np.ndarray,
+        ref_vel: np.ndarray,
+        dither_v: np.ndarray,
+    ) -> None:
         w = bandwidth_rad_s
         self.k1 = 3 * w * w * nom.j_kgm2 / nom.gain_nm_per_v
         self.k2 = max(3 * w * nom.j_kgm2 - nom.b_nms, 0.2 * w * nom.j_kgm2) / nom.gain_nm_per_v

@@ -50,8 +50,12 @@ def size_of_effect(sc: Scenario, run: Run) -> dict[str, float]:
     pl, m = sc.plant, sc.plant.motor
     step = sc.encoder.step_rad(m.gear_ratio)
     w = np.gradient(run.load_true_rad, run.t_s)
-    out = {"disturbance_nm": sc.disturbance_nm, "count_torque_nm": sc.count_torque_nm(),
-           "encoder_step_rad": step, "torque_floor_nm": torque_floor_nm(sc)}
+    out = {
+        "disturbance_nm": sc.disturbance_nm,
+        "count_torque_nm": sc.count_torque_nm(),
+        "encoder_step_rad": step,
+        "torque_floor_nm": torque_floor_nm(sc),
+    }
     fm, fl = pl.friction_motor, pl.friction_load
     torque: float | None = None
     if sc.effect == "offset":
@@ -81,8 +85,11 @@ def size_of_effect(sc: Scenario, run: Run) -> dict[str, float]:
         twist = run.motor_true_rad - run.load_true_rad
         out["twist_rms_counts"] = float(np.std(twist) / step)
     if torque is not None:
-        out.update(effect_torque_nm=torque, over_disturbance=torque / sc.disturbance_nm,
-                   over_count_torque=torque / sc.count_torque_nm())
+        out.update(
+            effect_torque_nm=torque,
+            over_disturbance=torque / sc.disturbance_nm,
+            over_count_torque=torque / sc.count_torque_nm(),
+        )
     return out
 
 
@@ -92,13 +99,24 @@ def truth_of(sc: Scenario, run: Run) -> dict[str, object]:
     m = sc.plant.motor
     hidden = {k: wb[k] for k in EFFECT_PARAMS.get(sc.effect or "", ())}
     return {
-        "name": sc.name, "seed": sc.seed, "effect": sc.effect, "hidden_params": hidden,
-        "axis": sc.axis, "gain_nm_per_v": m.gain_nm_per_v,
+        "name": sc.name,
+        "seed": sc.seed,
+        "effect": sc.effect,
+        "hidden_params": hidden,
+        "axis": sc.axis,
+        "gain_nm_per_v": m.gain_nm_per_v,
         "conditions": {
-            "rate_hz": sc.rate_hz, "duration_s": sc.duration_s, "controller": sc.controller,
-            "program": sc.program, "friction_law": sc.plant.law, "encoder": asdict(sc.encoder),
-            "latency_ticks": sc.latency_ticks, "dither_v": sc.dither_v, "u_max_v": sc.u_max_v,
-            "bandwidth_rad_s": sc.bandwidth_rad_s, "transmission": sc.plant.transmission.kind,
+            "rate_hz": sc.rate_hz,
+            "duration_s": sc.duration_s,
+            "controller": sc.controller,
+            "program": sc.program,
+            "friction_law": sc.plant.law,
+            "encoder": asdict(sc.encoder),
+            "latency_ticks": sc.latency_ticks,
+            "dither_v": sc.dither_v,
+            "u_max_v": sc.u_max_v,
+            "bandwidth_rad_s": sc.bandwidth_rad_s,
+            "transmission": sc.plant.transmission.kind,
             "electrical_tau_ms": 1e3 * m.electrical_time_constant_s,
             "electrical_tau_samples": m.electrical_time_constant_s * sc.rate_hz,
             "disturbance_corr_s": sc.disturbance_corr_s,
@@ -106,13 +124,17 @@ def truth_of(sc: Scenario, run: Run) -> dict[str, object]:
         "size": size_of_effect(sc, run),
         "workbench_truth": wb,
         "plant": sc.plant.as_dict(),
-        "run": {"theta_span_rad": float(np.ptp(run.theta_rad)), "u_rms_v": float(np.sqrt(np.mean(run.u_v**2))),
-                "u_peak_v": float(np.max(np.abs(run.u_v)))},
+        "run": {
+            "theta_span_rad": float(np.ptp(run.theta_rad)),
+            "u_rms_v": float(np.sqrt(np.mean(run.u_v**2))),
+            "u_peak_v": float(np.max(np.abs(run.u_v))),
+        },
     }
 
 
-def generate(out_dir: Path, name: str, seed: int, effect: str | None,
-             duration_s: float = 20.0) -> dict[str, object]:
+def generate(
+    out_dir: Path, name: str, seed: int, effect: str | None, duration_s: float = 20.0
+) -> dict[str, object]:
     """Write out_dir/NAME.csv and out_dir/NAME.truth.json; returns the truth."""
     sc, run = build(name, seed, effect, duration_s)
     out_dir.mkdir(parents=True, exist_ok=True)

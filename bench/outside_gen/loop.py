@@ -47,8 +47,9 @@ class Run:
     disturbance_nm: np.ndarray
 
 
-def ou_disturbance(n: int, period_s: float, sigma_nm: float, corr_s: float,
-                   rng: np.random.Generator) -> np.ndarray:
+def ou_disturbance(
+    n: int, period_s: float, sigma_nm: float, corr_s: float, rng: np.random.Generator
+) -> np.ndarray:
     """Ornstein–Uhlenbeck torque sampled at the ticks, stationary std sigma_nm."""
     a = math.exp(-period_s / corr_s)
     d = np.zeros(n)
@@ -59,9 +60,16 @@ def ou_disturbance(n: int, period_s: float, sigma_nm: float, corr_s: float,
     return d
 
 
-def run_loop(plant: AxisPlant, controller: Controller, period_s: float, n_ticks: int, encoder: Encoder,
-             latency_ticks: int = 0, delay_s: float = 0.0,
-             disturbance_nm: np.ndarray | None = None) -> Run:
+def run_loop(
+    plant: AxisPlant,
+    controller: Controller,
+    period_s: float,
+    n_ticks: int,
+    encoder: Encoder,
+    latency_ticks: int = 0,
+    delay_s: float = 0.0,
+    disturbance_nm: np.ndarray | None = None,
+) -> Run:
     """Run n_ticks of the loop; the command applied over [t_i, t_i+1) lags by latency + delay."""
     p = plant.pack()
     n_sub = ph.substeps_for(period_s)

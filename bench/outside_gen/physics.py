@@ -111,8 +111,15 @@ def derivative(x: np.ndarray, p: np.ndarray, u_applied_v: float, dist_nm: float)
 
 @numba.njit(cache=True)
 def advance(
-    x: np.ndarray, p: np.ndarray, u_before_v: float, u_after_v: float, switch_frac: float,
-    dist0_nm: float, dist1_nm: float, period_s: float, n_sub: int,
+    x: np.ndarray,
+    p: np.ndarray,
+    u_before_v: float,
+    u_after_v: float,
+    switch_frac: float,
+    dist0_nm: float,
+    dist1_nm: float,
+    period_s: float,
+    n_sub: int,
 ) -> np.ndarray:
     """Integrate one log period with RK4 in n_sub steps.
 

@@ -58,9 +58,18 @@ class Friction:
     sigma1_decay_rad_s: float = 0.05
 
     def packed(self) -> list[float]:
-        return [self.fc_pos_nm, self.fc_neg_nm, max(self.fs_nm, self.fc_pos_nm, self.fc_neg_nm),
-                self.stribeck_rad_s, self.b_pos_nms, self.b_neg_nms, self.tanh_eps_rad_s,
-                self.sigma0_nm_per_rad, self.sigma1_nms_per_rad, self.sigma1_decay_rad_s]
+        return [
+            self.fc_pos_nm,
+            self.fc_neg_nm,
+            max(self.fs_nm, self.fc_pos_nm, self.fc_neg_nm),
+            self.stribeck_rad_s,
+            self.b_pos_nms,
+            self.b_neg_nms,
+            self.tanh_eps_rad_s,
+            self.sigma0_nm_per_rad,
+            self.sigma1_nms_per_rad,
+            self.sigma1_decay_rad_s,
+        ]
 
 
 @dataclass(frozen=True)
@@ -104,7 +113,11 @@ class AxisPlant:
         p = np.zeros(ph.N_PARAMS)
         p[ph.P_R_OHM], p[ph.P_L_H], p[ph.P_KT] = m.r_ohm, m.l_h, m.kt_nm_per_a
         p[ph.P_KE], p[ph.P_N], p[ph.P_GAMP], p[ph.P_VRAIL] = (
-            m.ke_v_s_per_rad, m.gear_ratio, m.amp_gain_v_per_v, m.amp_rail_v)
+            m.ke_v_s_per_rad,
+            m.gear_ratio,
+            m.amp_gain_v_per_v,
+            m.amp_rail_v,
+        )
         p[ph.P_JM], p[ph.P_JL] = self.j_motor_kgm2, self.j_load_kgm2
         p[ph.P_MODE] = {"rigid": ph.MODE_RIGID, "belt": ph.MODE_BELT, "backlash": ph.MODE_BACKLASH}[tr.kind]
         jr = self.j_motor_kgm2 * self.j_load_kgm2 / self.j_total_kgm2
@@ -115,12 +128,18 @@ class AxisPlant:
             w = 2 * math.pi * tr.contact_hz
             p[ph.P_K_NM_RAD], p[ph.P_C_NMS_RAD], p[ph.P_GAP_RAD] = w * w * jr, 2 * 0.3 * w * jr, tr.gap_rad
         p[ph.P_GRAV_NM], p[ph.P_GRAV_PHASE], p[ph.P_BIAS_NM] = (
-            self.gravity_nm, self.gravity_phase_rad, self.bias_nm)
+            self.gravity_nm,
+            self.gravity_phase_rad,
+            self.bias_nm,
+        )
         p[ph.P_COG_NM], p[ph.P_COG_CYC], p[ph.P_COG_PHASE] = (
-            self.cog_nm, self.ripple_cycles_per_rev, self.cog_phase_rad)
+            self.cog_nm,
+            self.ripple_cycles_per_rev,
+            self.cog_phase_rad,
+        )
         p[ph.P_LAW] = ph.LAW_LUGRE if self.law == "lugre" else ph.LAW_TANH
-        p[ph.P_FRIC_M:ph.P_FRIC_M + 10] = self.friction_motor.packed()
-        p[ph.P_FRIC_L:ph.P_FRIC_L + 10] = self.friction_load.packed()
+        p[ph.P_FRIC_M : ph.P_FRIC_M + 10] = self.friction_motor.packed()
+        p[ph.P_FRIC_L : ph.P_FRIC_L + 10] = self.friction_load.packed()
         return p
 
     def workbench_truth(self) -> dict[str, float]:

@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def s_curve_moves(t_s: np.ndarray, rng: np.random.Generator, span_rad: float,
-                  speed_rad_s: float) -> tuple[np.ndarray, np.ndarray]:
+def s_curve_moves(
+    t_s: np.ndarray, rng: np.random.Generator, span_rad: float, speed_rad_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Point-to-point moves with a cycloidal (S-curve) profile, dwells of 0.3–1.5 s between."""
     pos, vel = np.zeros_like(t_s), np.zeros_like(t_s)
     here, start = 0.0, 0.5

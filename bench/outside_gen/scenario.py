@@ -26,8 +26,18 @@ from bench.outside_gen.controllers import (
 from bench.outside_gen.loop import Controller, Encoder, Run, ou_disturbance, run_loop
 from bench.outside_gen.plant import AxisPlant, Friction, Motor, Transmission
 
-EFFECTS = ("offset", "coulomb_asymmetry", "viscous_asymmetry", "stiction", "gravity", "delay",
-           "saturation", "ripple", "backlash", "compliance")
+EFFECTS = (
+    "offset",
+    "coulomb_asymmetry",
+    "viscous_asymmetry",
+    "stiction",
+    "gravity",
+    "delay",
+    "saturation",
+    "ripple",
+    "backlash",
+    "compliance",
+)
 HORIZON_S = 0.03
 RATES_HZ = (200, 250, 500, 1000, 2000)
 CPR = (1000, 2048, 4096, 8192, 16384)
@@ -63,15 +73,24 @@ class Scenario:
         return 2 * self.plant.j_total_kgm2 * step / HORIZON_S**2
 
 
-def _friction(rng: np.random.Generator, fc_nm: float, b_nms: float, law: str, j_kgm2: float,
-              stribeck_excess: float) -> Friction:
+def _friction(
+    rng: np.random.Generator, fc_nm: float, b_nms: float, law: str, j_kgm2: float, stribeck_excess: float
+) -> Friction:
     z_pre = rng.uniform(5e-5, 3e-4)
     sigma0 = fc_nm / z_pre if law == "lugre" else 0.0
     sigma1 = 2 * rng.uniform(0.3, 1.0) * math.sqrt(sigma0 * j_kgm2) if law == "lugre" else 0.0
-    return Friction(fc_pos_nm=fc_nm, fc_neg_nm=fc_nm, fs_nm=fc_nm * (1 + stribeck_excess),
-                    stribeck_rad_s=rng.uniform(0.005, 0.05), b_pos_nms=b_nms, b_neg_nms=b_nms,
-                    tanh_eps_rad_s=rng.uniform(1e-4, 5e-4), sigma0_nm_per_rad=sigma0,
-                    sigma1_nms_per_rad=sigma1, sigma1_decay_rad_s=rng.uniform(0.01, 0.1))
+    return Friction(
+        fc_pos_nm=fc_nm,
+        fc_neg_nm=fc_nm,
+        fs_nm=fc_nm * (1 + stribeck_excess),
+        stribeck_rad_s=rng.uniform(0.005, 0.05),
+        b_pos_nms=b_nms,
+        b_neg_nms=b_nms,
+        tanh_eps_rad_s=rng.uniform(1e-4, 5e-4),
+        sigma0_nm_per_rad=sigma0,
+        sigma1_nms_per_rad=sigma1,
+        sigma1_decay_rad_s=rng.uniform(0.01, 0.1),
+    )
 
 
 def draw_base(name: str, seed: int, effect: str | None, duration_s: float = 20.0) -> Scenario:
@@ -86,8 +105,15 @@ def draw_base(name: str, seed: int, effect: str | None, duration_s: float = 20.0
     j_load = rng.uniform(0.0015, 0.004) if axis == "pan" else rng.uniform(0.0008, 0.002)
     motor_fraction = rng.uniform(0.12, 0.35) if two_mass else rng.uniform(0.01, 0.08)
     j_rotor = motor_fraction / (1 - motor_fraction) * j_load / gear**2
-    motor = Motor(r_ohm=r_ohm, l_h=rng.uniform(0.1e-3, 0.6e-3) * r_ohm, kt_nm_per_a=kt, gear_ratio=gear,
-                  amp_gain_v_per_v=rng.uniform(1.0, 3.0), amp_rail_v=1e3, j_rotor_kgm2=j_rotor)
+    motor = Motor(
+        r_ohm=r_ohm,
+        l_h=rng.uniform(0.1e-3, 0.6e-3) * r_ohm,
+        kt_nm_per_a=kt,
+        gear_ratio=gear,
+        amp_gain_v_per_v=rng.uniform(1.0, 3.0),
+        amp_rail_v=1e3,
+        j_rotor_kgm2=j_rotor,
+    )
     law = str(rng.choice(["tanh", "lugre"]))
     fc = rng.uniform(0.02, 0.06)
     share_motor = rng.uniform(0.7, 1.0) if two_mass else rng.uniform(0.5, 1.0)
@@ -96,22 +122,42 @@ def draw_base(name: str, seed: int, effect: str | None, duration_s: float = 20.0
     f_m = _friction(rng, fc * share_motor, rng.uniform(2e-4, 1e-3), law, j_total, excess)
     f_l = _friction(rng, fc * (1 - share_motor), rng.uniform(0, 4e-4), law, j_total, excess)
     plant = AxisPlant(motor=motor, j_load_kgm2=j_load, law=law, friction_motor=f_m, friction_load=f_l)
-    controller = str(rng.choice(["pid_dom", "cascade", "state_feedback", "open_loop"], p=[.3, .25, .25, .2]))
-    program = str(rng.choice(["v_steps", "v_ramps", "multisine"] if controller == "open_loop"
-                             else ["s_curve", "sines", "steps"]))
+    controller = str(
+        rng.choice(["pid_dom", "cascade", "state_feedback", "open_loop"], p=[0.3, 0.25, 0.25, 0.2])
+    )
+    program = str(
+        rng.choice(
+            ["v_steps", "v_ramps", "multisine"]
+            if controller == "open_loop"
+            else ["s_curve", "sines", "steps"]
+        )
+    )
     nyq_rad_s = 2 * math.pi * rate
     bw = rng.uniform(60, 200) if controller == "cascade" else rng.uniform(12, 35)
     bw = min(bw, nyq_rad_s / (10 if controller == "cascade" else 40))
     cpr = int(rng.choice(CPR))
-    encoder = Encoder(cpr, on_motor=two_mass or bool(rng.random() < 0.6),
-                      rounding=str(rng.choice(["floor", "round"])))
+    encoder = Encoder(
+        cpr, on_motor=two_mass or bool(rng.random() < 0.6), rounding=str(rng.choice(["floor", "round"]))
+    )
     return Scenario(
-        name=name, seed=seed, effect=effect, axis=axis, rate_hz=rate, duration_s=duration_s, encoder=encoder,
-        controller=controller, program=program, plant=plant,
+        name=name,
+        seed=seed,
+        effect=effect,
+        axis=axis,
+        rate_hz=rate,
+        duration_s=duration_s,
+        encoder=encoder,
+        controller=controller,
+        program=program,
+        plant=plant,
         latency_ticks=int(controller != "open_loop" and rng.random() < 0.3 and effect != "delay"),
-        delay_s=0.0, disturbance_nm=rng.uniform(0.5e-3, 3e-3), disturbance_corr_s=rng.uniform(0.02, 0.2),
+        delay_s=0.0,
+        disturbance_nm=rng.uniform(0.5e-3, 3e-3),
+        disturbance_corr_s=rng.uniform(0.02, 0.2),
         dither_v=rng.uniform(0.05, 0.2) if controller != "open_loop" and rng.random() < 0.5 else 0.0,
-        u_max_v=rng.uniform(6.0, 12.0), bandwidth_rad_s=bw)
+        u_max_v=rng.uniform(6.0, 12.0),
+        bandwidth_rad_s=bw,
+    )
 
 
 def prbs(n: int, rng: np.random.Generator) -> np.ndarray:
@@ -134,8 +180,12 @@ def controller_for(sc: Scenario, seed: int) -> Controller:
         level = min(rng.uniform(2.0, 4.0) * fc / m.gain_nm_per_v, 0.8 * sc.u_max_v)
         make = {"v_steps": refs.voltage_steps, "v_ramps": refs.voltage_ramps, "multisine": refs.multisine}
         return OpenLoop(make[sc.program](t, rng, level))
-    nom = Nominal(j_kgm2=pl.j_total_kgm2 * rng.uniform(0.7, 1.3), b_nms=b * rng.uniform(0.5, 2.0),
-                  gain_nm_per_v=m.gain_nm_per_v * rng.uniform(0.9, 1.1), coulomb_nm=fc * rng.uniform(0.7, 1.2))
+    nom = Nominal(
+        j_kgm2=pl.j_total_kgm2 * rng.uniform(0.7, 1.3),
+        b_nms=b * rng.uniform(0.5, 2.0),
+        gain_nm_per_v=m.gain_nm_per_v * rng.uniform(0.9, 1.1),
+        coulomb_nm=fc * rng.uniform(0.7, 1.2),
+    )
     span = 1.4 if sc.axis == "pan" else 0.6
     if sc.program == "s_curve":
         ref, vel = refs.s_curve_moves(t, rng, span, rng.uniform(0.5, 2.0))
@@ -145,8 +195,16 @@ def controller_for(sc: Scenario, seed: int) -> Controller:
         ref, vel = refs.random_steps(t, rng, span * 0.6)
     dither = prbs(n, rng) * sc.dither_v
     if sc.controller == "pid_dom":
-        return PidDerivOnMeasurement(nom, sc.bandwidth_rad_s, sc.period_s, sc.u_max_v, ref, vel, dither,
-                                     coulomb_ff=bool(rng.random() < 0.5))
+        return PidDerivOnMeasurement(
+            nom,
+            sc.bandwidth_rad_s,
+            sc.period_s,
+            sc.u_max_v,
+            ref,
+            vel,
+            dither,
+            coulomb_ff=bool(rng.random() < 0.5),
+        )
     if sc.controller == "cascade":
         return VelocityCascade(nom, sc.bandwidth_rad_s, sc.period_s, sc.u_max_v, ref, vel, dither)
     return StateFeedback(nom, sc.bandwidth_rad_s, sc.period_s, sc.u_max_v, ref, vel, dither)
@@ -154,10 +212,19 @@ def controller_for(sc: Scenario, seed: int) -> Controller:
 
 def simulate(sc: Scenario) -> Run:
     n = int(sc.duration_s * sc.rate_hz)
-    dist = ou_disturbance(n + 1, sc.period_s, sc.disturbance_nm, sc.disturbance_corr_s,
-                          np.random.default_rng(sc.seed + 104729))
-    return run_loop(sc.plant, controller_for(sc, sc.seed), sc.period_s, n, sc.encoder,
-                    latency_ticks=sc.latency_ticks, delay_s=sc.delay_s, disturbance_nm=dist)
+    dist = ou_disturbance(
+        n + 1, sc.period_s, sc.disturbance_nm, sc.disturbance_corr_s, np.random.default_rng(sc.seed + 104729)
+    )
+    return run_loop(
+        sc.plant,
+        controller_for(sc, sc.seed),
+        sc.period_s,
+        n,
+        sc.encoder,
+        latency_ticks=sc.latency_ticks,
+        delay_s=sc.delay_s,
+        disturbance_nm=dist,
+    )
 
 
 def torque_floor_nm(sc: Scenario) -> float:
@@ -171,13 +238,21 @@ def with_effect(sc: Scenario, rng: np.random.Generator) -> Scenario:
     floor = torque_floor_nm(sc)
     fm, fl = pl.friction_motor, pl.friction_load
     if eff == "offset":
-        return replace(sc, plant=replace(pl, bias_nm=float(rng.choice([-1, 1])) * floor * rng.uniform(1.0, 1.6)))
+        return replace(
+            sc, plant=replace(pl, bias_nm=float(rng.choice([-1, 1])) * floor * rng.uniform(1.0, 1.6))
+        )
     if eff == "coulomb_asymmetry":
         d = floor * rng.uniform(1.0, 1.5) * float(rng.choice([-1, 1]))
         share = fm.fc_pos_nm / (fm.fc_pos_nm + fl.fc_pos_nm)
         d = max(d, -0.6 * (fm.fc_pos_nm + fl.fc_pos_nm))
-        return replace(sc, plant=replace(pl, friction_motor=replace(fm, fc_neg_nm=fm.fc_neg_nm + d * share),
-                                         friction_load=replace(fl, fc_neg_nm=fl.fc_neg_nm + d * (1 - share))))
+        return replace(
+            sc,
+            plant=replace(
+                pl,
+                friction_motor=replace(fm, fc_neg_nm=fm.fc_neg_nm + d * share),
+                friction_load=replace(fl, fc_neg_nm=fl.fc_neg_nm + d * (1 - share)),
+            ),
+        )
     if eff == "viscous_asymmetry":
         b_total = fm.b_pos_nms + fl.b_pos_nms + pl.motor.back_emf_damping_nms_per_rad
         extra = max(b_total * rng.uniform(0.8, 1.5), floor / 0.5)  # ≥ the floor at 0.5 rad/s
@@ -185,8 +260,14 @@ def with_effect(sc: Scenario, rng: np.random.Generator) -> Scenario:
     if eff == "stiction":
         k = 1 + max(rng.uniform(0.5, 1.0), floor / (fm.fc_pos_nm + fl.fc_pos_nm))
         vs = rng.uniform(0.01, 0.05)
-        return replace(sc, plant=replace(pl, friction_motor=replace(fm, fs_nm=fm.fc_pos_nm * k, stribeck_rad_s=vs),
-                                         friction_load=replace(fl, fs_nm=fl.fc_pos_nm * k, stribeck_rad_s=vs)))
+        return replace(
+            sc,
+            plant=replace(
+                pl,
+                friction_motor=replace(fm, fs_nm=fm.fc_pos_nm * k, stribeck_rad_s=vs),
+                friction_load=replace(fl, fs_nm=fl.fc_pos_nm * k, stribeck_rad_s=vs),
+            ),
+        )
     if eff == "gravity":
         amp = max(floor * rng.uniform(1.0, 1.5), rng.uniform(0.02, 0.05))
         return replace(sc, plant=replace(pl, gravity_nm=amp, gravity_phase_rad=rng.uniform(-0.5, 0.5)))
@@ -196,16 +277,27 @@ def with_effect(sc: Scenario, rng: np.random.Generator) -> Scenario:
         step = sc.encoder.step_rad(pl.motor.gear_ratio)
         ok = [c for c in (3, 4, 6, 8) if 2 * math.pi / (c * pl.motor.gear_ratio) >= 25 * step]
         cyc = float(rng.choice(ok or [1.5]))
-        return replace(sc, plant=replace(pl, cog_nm=floor * rng.uniform(1.0, 1.5), cog_cycles_per_motor_rev=cyc,
-                                         cog_phase_rad=rng.uniform(0, 2 * math.pi)))
+        return replace(
+            sc,
+            plant=replace(
+                pl,
+                cog_nm=floor * rng.uniform(1.0, 1.5),
+                cog_cycles_per_motor_rev=cyc,
+                cog_phase_rad=rng.uniform(0, 2 * math.pi),
+            ),
+        )
     if eff == "backlash":
         step = sc.encoder.step_rad(pl.motor.gear_ratio)
         gap = max(rng.uniform(0.006, 0.015), 6 * step)
         return replace(sc, plant=replace(pl, transmission=Transmission("backlash", gap_rad=gap)))
     if eff == "compliance":
         hz = min(rng.uniform(8, 30), sc.rate_hz / 8)
-        return replace(sc, plant=replace(pl, transmission=Transmission("belt", belt_hz=hz,
-                                                                        belt_damping=rng.uniform(0.05, 0.2))))
+        return replace(
+            sc,
+            plant=replace(
+                pl, transmission=Transmission("belt", belt_hz=hz, belt_damping=rng.uniform(0.05, 0.2))
+            ),
+        )
     raise ValueError(f"unknown effect {eff!r}")
 
 

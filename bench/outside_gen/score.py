@@ -33,7 +33,9 @@ PYTHON = "/work/main/.venv/bin/python"
 
 
 def matrix(seed: int, n_clean: int, per_effect: int) -> list[tuple[str, int, str | None]]:
-    rows: list[tuple[str, int, str | None]] = [(f"clean-{k:03d}", seed * 100_000 + k, None) for k in range(n_clean)]
+    rows: list[tuple[str, int, str | None]] = [
+        (f"clean-{k:03d}", seed * 100_000 + k, None) for k in range(n_clean)
+    ]
     for e_i, eff in enumerate(EFFECTS):
         rows += [(f"{eff}-{k:03d}", seed * 100_000 + 1000 * (e_i + 1) + k, eff) for k in range(per_effect)]
     return rows
@@ -50,8 +52,19 @@ def _diagnose_one(args: tuple[str, str, str]) -> tuple[str, float]:
     out, name, tracker_dir = args
     truth = json.loads((Path(out) / f"{name}.truth.json").read_text())
     diag_path = Path(out) / f"{name}.diag.json"
-    cmd = [PYTHON, "-m", "tracker", "model", "diagnose", str(Path(out) / f"{name}.csv"),
-           "--axis", truth["axis"], "--gain", f"{truth['gain_nm_per_v']:.6g}", "--json"]
+    cmd = [
+        PYTHON,
+        "-m",
+        "tracker",
+        "model",
+        "diagnose",
+        str(Path(out) / f"{name}.csv"),
+        "--axis",
+        truth["axis"],
+        "--gain",
+        f"{truth['gain_nm_per_v']:.6g}",
+        "--json",
+    ]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, cwd=tracker_dir, capture_output=True, text=True, timeout=900)
     wall = time.perf_counter() - t0
@@ -91,10 +104,13 @@ def is_right(truth: str, verdict: str | None) -> bool:
 def conditions(t: dict) -> str:  # type: ignore[type-arg]
     c = t["conditions"]
     e = c["encoder"]
-    return (f"{t['axis']}, {c['rate_hz']} Hz, enc {e['counts_per_rev']} cpr {'motor' if e['on_motor'] else 'load'}"
-            f" {e['rounding']} (step {t['size']['encoder_step_rad']:.2e} rad), {c['controller']}/{c['program']},"
-            f" {c['friction_law']}, latency {c['latency_ticks']}, τe {c['electrical_tau_samples']:.2f} samples,"
-            f" dither {c['dither_v']:.2f} V, σ_d {1e3 * t['size']['disturbance_nm']:.2f} mN·m")
+    side = "motor" if e["on_motor"] else "load"
+    return (
+        f"{t['axis']}, {c['rate_hz']} Hz, enc {e['counts_per_rev']} cpr {side}"
+        f" {e['rounding']} (step {t['size']['encoder_step_rad']:.2e} rad), {c['controller']}/{c['program']},"
+        f" {c['friction_law']}, latency {c['latency_ticks']}, τe {c['electrical_tau_samples']:.2f} samples,"
+        f" dither {c['dither_v']:.2f} V, σ_d {1e3 * t['size']['disturbance_nm']:.2f} mN·m"
+    )
 
 
 def param_errors(t: dict, cand: dict | None) -> list[str]:  # type: ignore[type-arg]
@@ -106,7 +122,9 @@ def param_errors(t: dict, cand: dict | None) -> list[str]:  # type: ignore[type-
         if true_v is None or got is None:
             continue
         if name == "delay.seconds":
-            out.append(f"{name} {1e3 * got:.2f} ms for {1e3 * true_v:.2f} ms ({1e3 * (got - true_v):+.2f} ms)")
+            out.append(
+                f"{name} {1e3 * got:.2f} ms for {1e3 * true_v:.2f} ms ({1e3 * (got - true_v):+.2f} ms)"
+            )
         else:
             rel = 100 * (abs(got) - abs(true_v)) / abs(true_v) if true_v else math.nan
             out.append(f"{name} {got:.4g} for {true_v:.4g} ({rel:+.1f} %)")
@@ -125,20 +143,27 @@ def report(out: Path, rows: list[tuple[str, int, str | None]]) -> str:
     clean = [(n, t, d) for n, t, d in data if t["effect"] is None and "error" not in d]
     alarms = [(n, t, d) for n, t, d in clean if verdict_of(d)]
     lo, hi = wilson(len(alarms), len(clean))
-    say(f"## Clean logs: {len(clean) - len(alarms)}/{len(clean)} without a verdict; false-alarm rate "
-        f"{len(alarms) / max(1, len(clean)):.1%} (95 % Wilson interval {lo:.1%}–{hi:.1%})")
+    say(
+        f"## Clean logs: {len(clean) - len(alarms)}/{len(clean)} without a verdict; false-alarm rate "
+        f"{len(alarms) / max(1, len(clean)):.1%} (95 % Wilson interval {lo:.1%}–{hi:.1%})"
+    )
     for n, t, d in alarms:
         v = verdict_of(d)
         c = candidate(d, v) or {}
         say(f"- FALSE ALARM {n}: verdict **{v}** {c.get('params')} — {conditions(t)}")
         say(f"  evidence: {c.get('evidence')}")
-    findings = [(n, c["effect"], c.get("finding")) for n, _, d in clean for c in d["candidates"] if c.get("finding")]
-    say(f"- findings on clean logs (not verdicts): {Counter(f'{e}: {f}' for _, e, f in findings).most_common()}")
+    findings = [
+        (n, c["effect"], c.get("finding")) for n, _, d in clean for c in d["candidates"] if c.get("finding")
+    ]
+    counted = Counter(f"{e}: {f}" for _, e, f in findings).most_common()
+    say(f"- findings on clean logs (not verdicts): {counted}")
     singles = [(n, t, d) for n, t, d in data if t["effect"] is not None and "error" not in d]
     right = [x for x in singles if is_right(x[1]["effect"], verdict_of(x[2]))]
     lo, hi = wilson(len(right), len(singles))
-    say(f"\n## Singles: right first {len(right)}/{len(singles)} ({len(right) / max(1, len(singles)):.0%}, "
-        f"95 % {lo:.0%}–{hi:.0%}; offset ≡ coulomb_asymmetry)")
+    say(
+        f"\n## Singles: right first {len(right)}/{len(singles)} ({len(right) / max(1, len(singles)):.0%}, "
+        f"95 % {lo:.0%}–{hi:.0%}; offset ≡ coulomb_asymmetry)"
+    )
     table: dict[str, Counter[str]] = {}
     for _, t, d in singles:
         table.setdefault(t["effect"], Counter())[verdict_of(d) or "(none)"] += 1
@@ -156,19 +181,26 @@ def report(out: Path, rows: list[tuple[str, int, str | None]]) -> str:
             continue
         v = verdict_of(d)
         vc, tc = candidate(d, v) or {}, candidate(d, t["effect"]) or {}
-        say(f"- MISS {n}: truth **{t['effect']}** {t['hidden_params']} size "
-            f"{ {k: round(x, 3) for k, x in t['size'].items() if k not in ('encoder_step_rad',)} }")
+        say(
+            f"- MISS {n}: truth **{t['effect']}** {t['hidden_params']} size "
+            f"{ {k: round(x, 3) for k, x in t['size'].items() if k not in ('encoder_step_rad',)} }"
+        )
         say(f"  conditions: {conditions(t)}")
         say(f"  verdict: **{v}** {vc.get('params')} — {vc.get('evidence')}")
-        say(f"  true effect's candidate: significant={tc.get('significant')} finding={tc.get('finding')} "
-            f"params={tc.get('params')} — {tc.get('evidence')}")
+        say(
+            f"  true effect's candidate: significant={tc.get('significant')} finding={tc.get('finding')} "
+            f"params={tc.get('params')} — {tc.get('evidence')}"
+        )
         notes = [x for x in d.get("notes", []) if "adequate" not in x]
         if notes:
             say(f"  notes: {notes}")
     walls = sorted(d["wall_s"] for _, _, d in data)
     inner = sorted(d.get("elapsed_s", math.nan) for _, _, d in data if "error" not in d)
-    say(f"\n## Timings: CLI wall median {walls[len(walls) // 2]:.1f} s, max {walls[-1]:.1f} s over {len(walls)} "
-        f"runs (2 in parallel); diagnose's own elapsed_s median {inner[len(inner) // 2]:.2f} s, max {inner[-1]:.2f} s")
+    mid_wall, mid_inner = walls[len(walls) // 2], inner[len(inner) // 2]
+    say(
+        f"\n## Timings: CLI wall median {mid_wall:.1f} s, max {walls[-1]:.1f} s over {len(walls)} runs "
+        f"(2 in parallel); diagnose's own elapsed_s median {mid_inner:.2f} s, max {inner[-1]:.2f} s"
+    )
     for n, e in errors:
         say(f"- CLI ERROR {n}: {e[-400:]}")
     return "\n".join(lines)
@@ -181,7 +213,9 @@ def main() -> None:
     ap.add_argument("--clean", type=int, default=32)
     ap.add_argument("--per-effect", type=int, default=4)
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--tracker-dir", default="/work/main", help="folder whose tracker package the CLI imports")
+    ap.add_argument(
+        "--tracker-dir", default="/work/main", help="folder whose tracker package the CLI imports"
+    )
     ap.add_argument("--only", default="", help="comma-separated log names or effects (clean for clean logs)")
     ap.add_argument("--rerun", action="store_true", help="run the CLI again even where NAME.diag.json exists")
     a = ap.parse_args()
@@ -194,8 +228,11 @@ def main() -> None:
     with ProcessPoolExecutor(a.jobs) as pool:
         list(pool.map(_generate_one, [(str(a.out), n, s, e) for n, s, e in rows]))
     print(f"generated {len(rows)} logs in {time.perf_counter() - t0:.0f} s", flush=True)
-    todo = [(str(a.out), n, a.tracker_dir) for n, _, _ in rows
-            if a.rerun or not (a.out / f"{n}.diag.json").exists()]
+    todo = [
+        (str(a.out), n, a.tracker_dir)
+        for n, _, _ in rows
+        if a.rerun or not (a.out / f"{n}.diag.json").exists()
+    ]
     with ProcessPoolExecutor(a.jobs) as pool:
         for name, wall in pool.map(_diagnose_one, todo):
             print(f"  {name}: {wall:.1f} s", flush=True)
