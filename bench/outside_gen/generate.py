@@ -35,7 +35,7 @@ EFFECT_PARAMS = {
 }
 
 
-def build(name: str, seed: int, effect: str | None, duration_s: float = 20.0) -> tuple[Scenario, Run]:
+def build_once(name: str, seed: int, effect: str | None, duration_s: float = 20.0) -> tuple[Scenario, Run]:
     sc = draw_base(name, seed, effect, duration_s)
     rng = np.random.default_rng(seed + 31337)
     if effect == "saturation":
@@ -43,6 +43,26 @@ def build(name: str, seed: int, effect: str | None, duration_s: float = 20.0) ->
     elif effect is not None:
         sc = with_effect(sc, rng)
     return sc, simulate(sc)
+
+
+def clearly_present(size: dict[str, float]) -> bool:
+    """The run shows its hidden effect above its own floor: a torque (or the torque a delay or a
+    clip takes away) ≥ 3·σ_d and ≥ 1.5 counts' torque τ_q, a dead band ≥ 6 counts, a belt's twist
+    ≥ 3 counts RMS."""
+    if "effect_torque_nm" in size and (size["over_disturbance"] < 3 or size["over_count_torque"] < 1.5):
+        return False
+    return size.get("width_counts", 6.0) >= 6 and size.get("twist_rms_counts", 3.0) >= 3
+
+
+def build(
+    name: str, seed: int, effect: str | None, duration_s: float = 20.0, tries: int = 6
+) -> tuple[Scenario, Run]:
+    """A log whose hidden effect is clearly present: redrawn (seed + 7919·k) until it is."""
+    for k in range(tries):
+        sc, run = build_once(name, seed + 7919 * k, effect, duration_s)
+        if effect is None or clearly_present(size_of_effect(sc, run)):
+            break
+    return sc, run
 
 
 def size_of_effect(sc: Scenario, run: Run) -> dict[str, float]:

@@ -131,14 +131,15 @@ def param_errors(t: dict, cand: dict | None) -> list[str]:  # type: ignore[type-
     return out
 
 
-def report(out: Path, rows: list[tuple[str, int, str | None]]) -> str:
+def report(logs: list[tuple[Path, str]]) -> str:
+    """The figures over logs given as (folder, name), each with NAME.truth.json and NAME.diag.json."""
     lines: list[str] = []
     say = lines.append
     data = []
-    for name, _, _ in rows:
-        t = json.loads((out / f"{name}.truth.json").read_text())
-        d = json.loads((out / f"{name}.diag.json").read_text())
-        data.append((name, t, d))
+    for folder, name in logs:
+        t = json.loads((folder / f"{name}.truth.json").read_text())
+        d = json.loads((folder / f"{name}.diag.json").read_text())
+        data.append((name if len({f for f, _ in logs}) == 1 else f"{folder.name}/{name}", t, d))
     errors = [(n, d["error"]) for n, _, d in data if "error" in d]
     clean = [(n, t, d) for n, t, d in data if t["effect"] is None and "error" not in d]
     alarms = [(n, t, d) for n, t, d in clean if verdict_of(d)]
@@ -218,7 +219,15 @@ def main() -> None:
     )
     ap.add_argument("--only", default="", help="comma-separated log names or effects (clean for clean logs)")
     ap.add_argument("--rerun", action="store_true", help="run the CLI again even where NAME.diag.json exists")
+    ap.add_argument(
+        "--combine", default="", help="only report: every scored log of these folders (comma-separated)"
+    )
     a = ap.parse_args()
+    if a.combine:
+        folders = [Path(f) for f in a.combine.split(",")]
+        logs = [(f, p.name[: -len(".diag.json")]) for f in folders for p in sorted(f.glob("*.diag.json"))]
+        print(report([(f, n) for f, n in logs if "~" not in n and ".weak" not in n]))
+        return
     rows = matrix(a.seed, a.clean, a.per_effect)
     if a.only:
         keep = set(a.only.split(","))
@@ -236,7 +245,7 @@ def main() -> None:
     with ProcessPoolExecutor(a.jobs) as pool:
         for name, wall in pool.map(_diagnose_one, todo):
             print(f"  {name}: {wall:.1f} s", flush=True)
-    text = report(a.out, rows)
+    text = report([(a.out, n) for n, _, _ in rows])
     (a.out / "report.md").write_text(text + "\n")
     print(text)
 

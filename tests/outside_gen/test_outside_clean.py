@@ -19,7 +19,7 @@ from scipy.integrate import solve_ivp
 
 from bench.outside_gen import physics as ph
 from bench.outside_gen.controllers import OpenLoop
-from bench.outside_gen.generate import generate
+from bench.outside_gen.generate import build, clearly_present, generate, size_of_effect
 from bench.outside_gen.loop import Encoder, run_loop
 from bench.outside_gen.plant import AxisPlant, Friction, Motor, Transmission
 
@@ -171,3 +171,16 @@ def test_clean_logs_follow_the_csv_convention(tmp_path) -> None:  # type: ignore
             motor["gear_ratio"] * motor["kt_nm_per_a"] * motor["amp_gain_v_per_v"] / motor["r_ohm"]
         )
         assert math.isfinite(saved["conditions"]["electrical_tau_ms"])
+
+
+def test_a_log_is_a_function_of_its_seed_and_its_effect_is_clearly_present() -> None:
+    sc_a, run_a = build("offset-x", 5, "offset", duration_s=3.0)
+    sc_b, run_b = build("offset-x", 5, "offset", duration_s=3.0)
+    np.testing.assert_array_equal(run_a.theta_rad, run_b.theta_rad)
+    np.testing.assert_array_equal(run_a.u_v, run_b.u_v)
+    size = size_of_effect(sc_a, run_a)
+    assert clearly_present(size)
+    assert size["effect_torque_nm"] >= 3 * sc_a.disturbance_nm
+    assert clearly_present({"effect_torque_nm": 1.0, "over_disturbance": 3.0, "over_count_torque": 1.5})
+    assert not clearly_present({"effect_torque_nm": 1.0, "over_disturbance": 2.9, "over_count_torque": 9.0})
+    assert not clearly_present({"width_counts": 5.0}) and not clearly_present({"twist_rms_counts": 2.0})
