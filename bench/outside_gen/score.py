@@ -113,6 +113,23 @@ def conditions(t: dict) -> str:  # type: ignore[type-arg]
     )
 
 
+def _controller(t: dict) -> str:  # type: ignore[type-arg]
+    return str(t["conditions"]["controller"])
+
+
+def _law(t: dict) -> str:  # type: ignore[type-arg]
+    return str(t["conditions"]["friction_law"])
+
+
+def _step_bucket(t: dict) -> str:  # type: ignore[type-arg]
+    step = t["size"]["encoder_step_rad"]
+    return (
+        "fine (<5e-4 rad)"
+        if step < 5e-4
+        else ("coarse (5e-4-2e-3)" if step < 2e-3 else "very coarse (>2e-3)")
+    )
+
+
 def param_errors(t: dict, cand: dict | None) -> list[str]:  # type: ignore[type-arg]
     if cand is None or t["effect"] is None:
         return []
@@ -153,6 +170,10 @@ def report(logs: list[tuple[Path, str]]) -> str:
         c = candidate(d, v) or {}
         say(f"- FALSE ALARM {n}: verdict **{v}** {c.get('params')} — {conditions(t)}")
         say(f"  evidence: {c.get('evidence')}")
+    for label, key in (("controller", _controller), ("friction law", _law), ("encoder step", _step_bucket)):
+        total = Counter(key(t) for _, t, _ in clean)
+        hit = Counter(key(t) for _, t, _ in alarms)
+        say(f"- false alarms by {label}: " + ", ".join(f"{k} {hit[k]}/{total[k]}" for k in sorted(total)))
     findings = [
         (n, c["effect"], c.get("finding")) for n, _, d in clean for c in d["candidates"] if c.get("finding")
     ]
