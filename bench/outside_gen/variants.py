@@ -7,7 +7,8 @@ the CLI on it, and print the verdict next to the original's.
 Changes: tanh (a tanh friction law in place of LuGre),
 no_inductance (electrical time constant 10 µs), fine_encoder (16384 counts per motor rev),
 no_latency, no_dither, no_stribeck (static level = Coulomb), no_disturbance,
-weak_emf (back-EMF damping ×0.09 at the same K).
+weak_emf (back-EMF damping ×0.09 at the same K), pid (a PI-D loop in place of the
+closed loop's controller), light_clip (a saturation log's rail ×2, after the effect is drawn).
 Each variant keeps the seed: the same reference, gains and disturbance draw.
 """
 
@@ -32,6 +33,11 @@ from bench.outside_gen.score import _diagnose_one, verdict_of  # noqa: E402
 
 def changed(sc: Scenario, change: str) -> Scenario:
     pl = sc.plant
+    if change == "light_clip":  # applied after the effect: the amplifier's rail twice as high
+        m = pl.motor
+        return replace(sc, plant=replace(pl, motor=replace(m, amp_rail_v=2 * m.amp_rail_v)))
+    if change == "pid":  # the same reference through a PI-D loop (bandwidth 25 rad/s)
+        return replace(sc, controller="pid_dom", bandwidth_rad_s=25.0)
     if change == "tanh":
         return replace(sc, plant=replace(pl, law="tanh"))
     if change == "no_inductance":
@@ -69,11 +75,13 @@ def main() -> None:
         sc = draw_base(a.name, a.seed, a.effect)
         rng = np.random.default_rng(a.seed + 31337)
         for c in group:
-            sc = changed(sc, c)
+            sc = sc if c == "light_clip" else changed(sc, c)
         if a.effect == "saturation":
             sc = with_saturation(sc, simulate(sc), rng)
         elif a.effect:
             sc = with_effect(sc, rng)
+        if "light_clip" in group:
+            sc = changed(sc, "light_clip")
         name = f"{a.name}~{'+'.join(group)}"
         run = simulate(sc)
         write_csv(str(a.out / f"{name}.csv"), run)
