@@ -1,0 +1,81 @@
+"""The serial port's line reader and the driver above it when the host's thread is held up
+between its request and the reading of the answer (the interpreter lock, a loaded machine):
+an answer already there is no time-out. It counted as one, and a loaded test run's serial rig
+latched "link lost" from two of them 0.25 s apart."""
+
+import os
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tracker.drivers.motor_emulator import MotorEmulator
+from tracker.drivers.serial_motor import SerialMotorDriver
+from tracker.drivers.serial_port import ReplyTimeout, SerialPort
+from tracker.drivers.spec import parse_driver_url
+
+
+@pytest.fixture
+def pty_port() -> Iterator[tuple[int, SerialPort]]:
+    """(the far end's fd, the near end opened as a SerialPort)."""
+    far, near = os.openpty()
+    port = SerialPort(os.ttyname(near), 115200)
+    os.close(near)
+    yield far, port
+    port.close()
+    os.close(far)
+
+
+def test_a_line_that_arrived_before_a_passed_deadline_is_read(pty_port: tuple[int, SerialPort]) -> None:
+    far, port = pty_port
+    os.write(far, b"7 E 1 2 3 0*00\n")
+    time.sleep(0.05)  # the answer is there; the deadline passed while this thread was away
+    assert port.read_line(time.perf_counter() - 0.01) == b"7 E 1 2 3 0*00\n"
+
+
+def test_nothing_there_after_the_deadline_is_a_time_out_at_once(pty_port: tuple[int, SerialPort]) -> None:
+    far, port = pty_port
+    t0 = time.perf_counter()
+    with pytest.raises(ReplyTimeout):
+        port.read_line(t0 - 0.01)
+    with pytest.raises(ReplyTimeout):
+        port.read_line(time.perf_counter() + 0.02)
+    assert time.perf_counter() - t0 < 0.5
+    os.write(far, b"half a li")  # a line begun but not ended by the deadline is not waited for
+    time.sleep(0.02)
+    with pytest.raises(ReplyTimeout):
+        port.read_line(time.perf_counter() - 0.01)
+
+
+class _HeldUpPort(SerialPort):
+    """A port whose thread is held up for ``hold_s`` after each request it writes."""
+
+    hold_s = 0.0
+
+    def write(self, data: bytes) -> None:
+        super().write(data)
+        time.sleep(self.hold_s)
+
+
+def test_a_host_held_up_after_each_request_is_no_lost_link(tmp_path: Path) -> None:
+    emu = MotorEmulator(pty_link=tmp_path / "ttyRIG")
+    emu.start()
+    d = SerialMotorDriver(parse_driver_url(f"serial://{emu.path}?baud=1000000&rate=250&watchdog_ms=1000"),
+                          open_port=_HeldUpPort)
+    try:
+        d.start()
+        d.wait_ready(5.0)
+        d.enable()
+        _HeldUpPort.hold_s = 0.03  # longer than the 12 ms the driver waits for an answer
+        end = time.monotonic() + 0.6  # longer than link_lost_s (0.25 s)
+        while time.monotonic() < end:
+            d.command("pan", 0.5)
+            d.tick()
+        assert not d.faults(), d.faults()
+        assert d.timeouts == 0 and d.state == "connected"
+        assert emu.board.command_mv["pan"] == 500  # the commands went through
+    finally:
+        _HeldUpPort.hold_s = 0.0
+        d.close()
+        emu.close()
