@@ -6,7 +6,9 @@ will reach, and for routes that need a role (``auth.RequireRole`` among their de
 answers 401/403 at once, or 429 with Retry-After while the client address is blocked for bad
 keys (app/backoff.py). Then it enforces the body limit: ``max_upload_bytes`` for routes that
 take a file upload, ``max_body_bytes`` for the rest; a Content-Length over the limit is refused
-before anything is read, and a body that streams past it is cut off with 413. Every refusal is
+before anything is read, and a body that streams past it is cut off with 413. A request that
+no route takes is left to the router, which answers 404 (or 405) without reading the body: an
+upload to a wrong path is told the path is wrong, not that it is too large. Every refusal is
 the JSON error of app/errors.py.
 """
 
@@ -66,7 +68,8 @@ class RequestGuard:
         s = svc.settings
         limit = s.max_upload_bytes if upload else s.max_body_bytes
         length = Headers(scope=scope).get("content-length")
-        if refusal is None and length is not None and length.isdigit() and int(length) > limit:
+        routed = scope.get(ROUTE_KEY) not in (None, UNMATCHED)  # else the router's 404 reads nothing
+        if refusal is None and routed and length is not None and length.isdigit() and int(length) > limit:
             refusal = _too_large(limit, upload)
         if refusal is not None:
             await error_response(refusal)(scope, receive, send)

@@ -166,9 +166,9 @@ def _loop_metrics(t: Any) -> Iterator[Metric]:  # noqa: ANN401 - a LoopTiming
     yield _counter("tracker_control_restarts", "times the loop fell over 0.1 s behind and started afresh",
                    t.restarts)
     yield _gauge("tracker_control_lateness_last_seconds", "the latest tick's lateness", t.last_lateness_s)
-    yield _gauge("tracker_control_lateness_max_seconds", "the largest tick lateness since start",
+    yield _gauge("tracker_control_lateness_max_seconds", "the largest tick lateness since the warm-up",
                  t.max_lateness_s)
-    yield _gauge("tracker_control_lateness_mean_seconds", "the mean tick lateness since start",
+    yield _gauge("tracker_control_lateness_mean_seconds", "the mean tick lateness since the warm-up",
                  t.mean_lateness_s)
     age = getattr(t, "last_tick_age_s", float("inf"))
     yield _gauge("tracker_control_last_tick_age_seconds", "time since the latest tick started "

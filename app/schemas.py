@@ -31,8 +31,12 @@ class LoopOut(BaseModel):
     period_ms: float = Field(description="the tick period: one chunk of control samples")
     ticks: int
     last_lateness_ms: float = Field(description="how late the last tick started")
-    max_lateness_ms: float
-    mean_lateness_ms: float
+    max_lateness_ms: float = Field(description="the largest lateness since the warm-up (warm_up_ticks)")
+    mean_lateness_ms: float = Field(description="the mean lateness since the warm-up")
+    warm_up_ticks: int = Field(0, description="the loop's first ticks (its first second: the first "
+                                              "chunk compiles or loads the numba kernels), left out "
+                                              "of max_lateness_ms and mean_lateness_ms")
+    warm_up_max_lateness_ms: float = Field(0.0, description="the largest lateness in the warm-up")
     overruns: int = Field(description="ticks that started a whole period (or more) late")
     restarts: int = Field(description="times the loop fell over 0.1 s behind and dropped ticks")
     in_thread: bool = Field(description="the loop runs in its own thread (real time)")

@@ -106,9 +106,10 @@ class WorkerPool:
     def __init__(self, max_workers: int, on_progress: ProgressFn | None = None, effects: str = "") -> None:
         ctx = multiprocessing.get_context("spawn")
         self._progress: Any = ctx.Queue()
-        self._cancel: SynchronizedArray[int] = ctx.Array("b", JOB_SLOTS)
-        self._executor = ProcessPoolExecutor(max_workers, mp_context=ctx, initializer=_init_worker,
-                                             initargs=(self._progress, self._cancel, effects))
+        self._cancel: SynchronizedArray[int] | list[int] = ctx.Array("b", JOB_SLOTS)
+        self._executor: ProcessPoolExecutor | None = ProcessPoolExecutor(
+            max_workers, mp_context=ctx, initializer=_init_worker,
+            initargs=(self._progress, self._cancel, effects))
         self._free = list(range(JOB_SLOTS))
         self._lock = threading.Lock()
         self._on_progress = on_progress
@@ -118,7 +119,7 @@ class WorkerPool:
 
     async def run(self, fn: Callable[..., T], *args: Any) -> T:
         """``fn(*args)`` in a worker; its exceptions are raised here."""
-        return await asyncio.get_running_loop().run_in_executor(self._executor, fn, *args)
+        return await asyncio.get_running_loop().run_in_executor(self._running(), fn, *args)
 
     def submit_job(
         self, fn: Callable[..., dict[str, Any]], job_id: int, *args: Any
@@ -129,9 +130,14 @@ class WorkerPool:
                 raise RuntimeError(f"more than {JOB_SLOTS} jobs at once")
             slot = self._free.pop()
         self._cancel[slot] = 0
-        future = self._executor.submit(_job_entry, fn, job_id, slot, args)
+        future = self._running().submit(_job_entry, fn, job_id, slot, args)
         future.add_done_callback(lambda _: self._release(slot))
         return slot, future
+
+    def _running(self) -> ProcessPoolExecutor:
+        if self._executor is None:
+            raise RuntimeError("the worker pool is shut down")
+        return self._executor
 
     def cancel(self, slot: int) -> None:
         self._cancel[slot] = 1
@@ -155,7 +161,16 @@ class WorkerPool:
         """Ask running jobs to stop, then stop the workers."""
         for slot in range(JOB_SLOTS):
             self._cancel[slot] = 1
-        self._executor.shutdown(wait=True, cancel_futures=True)
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=True)
+        # The executor keeps the queue and the flags (its workers' initargs): let go of it, so
+        # that their 4 semaphores are unlinked when the queue and flags go, here. Left to the
+        # process's exit they never were: uvicorn ends the service by re-raising its SIGTERM,
+        # which skips multiprocessing's exit handlers, and the resource tracker reported "4
+        # leaked semaphore objects" at every shutdown (and unlinked them itself).
+        self._executor = None  # (the queue and the flags go below)
         self._closing.set()
         self._pump.join(1.0)
         self._progress.close()
+        self._progress.join_thread()
+        self._progress, self._cancel = None, [1] * JOB_SLOTS  # the last references

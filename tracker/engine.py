@@ -70,6 +70,9 @@ from tracker.telemetry import EngineStatus, TelemetrySnapshot, TelemetrySubscrip
 from tracker.workbench.measurements.data import Measurement
 
 MODES = ("tracking", "manual", "hold", "disabled", "fault")
+# The real-time loop's first second of ticks is its warm-up (the first chunk compiles or loads
+# the numba kernels): its lateness is reported apart (tracker.realtime.TickStats).
+WARM_UP_S = 1.0
 
 
 _MOTOR_MEMBERS = tuple(m for m in MotorDriver.__dict__ if not m.startswith("_"))
@@ -470,8 +473,10 @@ class Engine:
             except RuntimeError:  # the event loop is gone: nobody waits
                 pass
 
-        paced = PacedLoop(self._n_chunk * self._dt, step, on_exit=on_exit, name="engine-loop",
-                          priority=self.config.loop_priority)
+        period = self._n_chunk * self._dt
+        paced = PacedLoop(period, step, on_exit=on_exit, name="engine-loop",
+                          priority=self.config.loop_priority,
+                          warm_up_ticks=max(2, math.ceil(WARM_UP_S / period)))
         self._paced = paced
         paced.start()
         try:

@@ -79,13 +79,23 @@ class LoopTiming:
     gap_bounds_s: tuple[float, ...] = ()  # the gap histogram's bucket upper bounds (s)
     gap_counts: tuple[int, ...] = ()  # gaps per bucket (not cumulative; one more: over the last)
     gap_sum_s: float = 0.0  # sum of all gaps
+    warm_up_ticks: int = 0  # the first ticks, left out of max_lateness_s and mean_lateness_s
+    warm_up_max_lateness_s: float = 0.0  # the largest lateness among them
 
 
 class TickStats:
-    """Lateness bookkeeping shared by the thread loop and the event-loop (batch) runner."""
+    """Lateness bookkeeping shared by the thread loop and the event-loop (batch) runner.
 
-    def __init__(self, period_s: float) -> None:
+    The first ``warm_up_ticks`` ticks are the loop's warm-up (the engine's first chunk compiles
+    or loads its numba kernels: 10-15 s late with a cold cache): their largest lateness is kept
+    apart, and the largest and mean lateness count from the tick after them, so a slow start
+    does not stand as the loop's worst tick for the service's life. The counters (ticks,
+    overruns, restarts, the gap histogram) count from the start: they only ever grow."""
+
+    def __init__(self, period_s: float, warm_up_ticks: int = 0) -> None:
         self.period_s = float(period_s)
+        self.warm_up_ticks = max(0, int(warm_up_ticks))
+        self.warm_up_max = 0.0
         self.ticks = 0
         self.last = 0.0
         self.max = 0.0
@@ -108,19 +118,22 @@ class TickStats:
             self.last_start_s = start_s
         self.ticks += 1
         self.last = late
-        self.total += late
-        if late > self.max:
-            self.max = late
+        if self.ticks <= self.warm_up_ticks:
+            self.warm_up_max = max(self.warm_up_max, late)
+        else:
+            self.total += late
+            self.max = max(self.max, late)
         if late >= self.period_s:
             self.overruns += 1
 
     def snapshot(self, running: bool, in_thread: bool, priority: int = 0) -> LoopTiming:
-        mean = self.total / self.ticks if self.ticks else 0.0
+        warm = self.ticks - self.warm_up_ticks
+        mean = self.total / warm if warm > 0 else 0.0
         start = self.last_start_s
         age = time.perf_counter() - start if start == start else math.inf
         return LoopTiming(self.period_s, self.ticks, self.last, self.max, mean, self.overruns,
                           self.restarts, running, in_thread, priority, age, self.gap_bounds_s,
-                          tuple(self.gap_counts), self.gap_sum_s)
+                          tuple(self.gap_counts), self.gap_sum_s, self.warm_up_ticks, self.warm_up_max)
 
 
 def raise_process_threads(priority: int) -> tuple[int, str | None]:
@@ -171,11 +184,12 @@ class PacedLoop:
         switch_interval_s: float | None = SWITCH_INTERVAL_S,
         priority: int = 0,
         name: str = "control-loop",
+        warm_up_ticks: int = 0,
     ) -> None:
         if not (period_s > 0 and spin_s >= 0 and max_behind_s > 0):
             raise ConfigError(
                 f"loop: period {period_s!r} s, spin {spin_s!r} s, max behind {max_behind_s!r} s")
-        self.stats = TickStats(period_s)
+        self.stats = TickStats(period_s, warm_up_ticks)
         self._step, self._on_exit = step, on_exit
         self._spin, self._max_behind, self._switch = spin_s, max_behind_s, switch_interval_s
         self._want_priority, self.priority = int(priority), 0

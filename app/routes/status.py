@@ -56,6 +56,8 @@ def loop_of(svc: Service) -> LoopOut | None:
                    max_lateness_ms=1e3 * t.max_lateness_s, mean_lateness_ms=1e3 * t.mean_lateness_s,
                    overruns=t.overruns, restarts=t.restarts, in_thread=t.in_thread, priority=t.priority,
                    service_threads_priority=svc.threads_priority,
+                   warm_up_ticks=getattr(t, "warm_up_ticks", 0),
+                   warm_up_max_lateness_ms=1e3 * getattr(t, "warm_up_max_lateness_s", 0.0),
                    last_tick_ms_ago=1e3 * age_s if math.isfinite(age_s) else None)
 
 

@@ -4,6 +4,7 @@ stopped, or the drive is faulted; 200 again once that is over."""
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -80,3 +81,10 @@ def test_a_stopped_engine_is_503(hrig: Rig) -> None:
     svc_of(hrig).engine.stop()
     assert poll(lambda: health(hrig)[0] == 503, 30.0)
     assert health(hrig)[1]["reasons"] == ["the engine loop is not running"]
+
+
+def test_the_status_keeps_the_loops_warm_up_apart(hrig: Rig) -> None:
+    loop = hrig.client.get(f"{API}/status", headers=hrig.h("viewer")).json()["loop"]
+    period_s = loop["period_ms"] / 1e3
+    assert loop["warm_up_ticks"] == math.ceil(1.0 / period_s)  # tracker.engine.WARM_UP_S
+    assert loop["warm_up_max_lateness_ms"] >= 0.0 and loop["max_lateness_ms"] >= 0.0

@@ -137,6 +137,17 @@ def test_an_upload_over_the_limit_is_refused_before_it_is_read(rig: Rig) -> None
     assert r["json"]["setting"] == "max_upload_bytes" and "max_upload_bytes" in r["json"]["detail"]
 
 
+@pytest.mark.parametrize(("path", "status"), [("/workbench/measurement", 404),
+                                            ("/workbench/measurements/upload", 405)])  # a GET route
+def test_an_upload_to_a_wrong_path_is_404_not_413_and_is_not_read(rig: Rig, path: str, status: int) -> None:
+    """Bug: a 1 MB upload to a mistyped path got 413 'a request body may have at most 65536
+    bytes': the body limit of a route-less request was checked before the router said 404."""
+    r = raw(rig, "POST", path, {**MULTIPART, **rig.h("engineer")}, total=MB)
+    assert r["status"] == status and r["pulled"] == 0, r["json"]
+    r = raw(rig, "POST", UPLOAD, {**MULTIPART, **rig.h("engineer")}, total=212 * MB)
+    assert r["status"] == 413 and r["pulled"] == 0  # the right path keeps its limit
+
+
 @pytest.mark.parametrize(
     ("path", "ctype", "limit"),
     [("/axes/pan/gains/preview", JSON, 65_536), (UPLOAD, MULTIPART, 20 * MB)],

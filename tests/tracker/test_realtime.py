@@ -166,3 +166,42 @@ def poll_until(fn: Callable[[], bool], deadline_s: float = 5.0) -> bool:
     while not fn() and time.monotonic() < end:
         time.sleep(0.005)
     return fn()
+
+
+def test_the_warm_up_ticks_lateness_is_kept_apart_from_the_loops() -> None:
+    """Bug: a cold numba cache made the engine's first chunk 10-15 s late, and max_lateness in
+    the status kept that for the service's life. The warm-up's worst is reported apart."""
+    stamps: list[float] = []
+
+    def step() -> bool:
+        stamps.append(time.perf_counter())
+        if len(stamps) == 1:
+            time.sleep(0.06)  # the first chunk compiles: the second tick starts ~50 ms late
+        if len(stamps) == 6:
+            time.sleep(0.025)  # a later stall: the seventh tick starts ~15 ms late
+        return len(stamps) < 10
+
+    loop = PacedLoop(0.01, step, warm_up_ticks=3)
+    loop.start()
+    loop.join(5.0)
+    t = loop.timing()
+    assert t.ticks == 10 and t.warm_up_ticks == 3
+    assert t.warm_up_max_lateness_s >= 0.045
+    assert 0.01 <= t.max_lateness_s < 0.045  # the later stall, not the warm-up's
+    assert t.overruns >= 2  # the counters count from the start
+
+
+def test_without_a_warm_up_every_tick_counts() -> None:
+    from tracker.realtime import TickStats
+
+    stats = TickStats(0.01)
+    for late in (0.5, 0.001, 0.002):
+        stats.record(late)
+    t = stats.snapshot(True, True)
+    assert t.max_lateness_s == 0.5 and t.mean_lateness_s == pytest.approx(0.503 / 3)
+    warm = TickStats(0.01, warm_up_ticks=1)
+    for late in (0.5, 0.001, 0.002):
+        warm.record(late)
+    t = warm.snapshot(True, True)
+    assert t.warm_up_max_lateness_s == 0.5 and t.max_lateness_s == 0.002
+    assert t.mean_lateness_s == pytest.approx(0.0015) and t.ticks == 3

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import time
 from typing import Any
@@ -43,6 +44,11 @@ def run(args: argparse.Namespace) -> int:
     twin = RigTwin(load_rig_config(args.rig_config) if args.rig_config else None)
     board = MotorBoard(twin, counts_per_rev=args.cpr, gear_ratio=args.gear_ratio)
     emulator = MotorEmulator(board, pty_link=args.pty_link)
+    # What the imports left (numba, the twin: ~100 000 objects) out of the collector's sight: a
+    # full collection over them while serving held the answers up 60 ms on a loaded machine,
+    # which a board never does (the service does the same, app/service.py).
+    gc.collect()
+    gc.freeze()
     path = emulator.start()
     print(f"motor controller emulator on {path}"
           + (f" (-> {emulator.device})" if args.pty_link else "")

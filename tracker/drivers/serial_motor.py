@@ -16,10 +16,11 @@ angle continues from the last one read.
 
 Safety: the soft limits are enforced here too — a command that drives further past a limit
 line is sent as 0 V, and past the end stop (limit + 5°) a fault latches. No answer for
-``link_lost_s``, or a port that fails, latches "link lost" and disables; the supervisor then
-reconnects with back-off (0.25 s doubling to 5 s) and the board stays disarmed until the
-fault is cleared and the driver enabled again. If the host stops commanding altogether, the
-board's watchdog zeroes the command and disarms; the next reply says so and a fault latches.
+``link_lost_s`` (the URL's ``link_lost_ms``, 0.25 s by default), or a port that fails,
+latches "link lost" and disables; the supervisor then reconnects with back-off (0.25 s
+doubling to 5 s) and the board stays disarmed until the fault is cleared and the driver
+enabled again. If the host stops commanding altogether, the board's watchdog zeroes the
+command and disarms; the next reply says so and a fault latches.
 
 Lending (:meth:`SerialMotorDriver.take_over`): a job hands in an experiment as a generator
 that yields the volts for the next sample and is sent what that sample read (angle rad, the
@@ -48,7 +49,7 @@ from tracker.drivers import motor_protocol as mp
 from tracker.drivers.motor import AXES, FaultLatch
 from tracker.drivers.serial_port import ReplyTimeout, SerialPort
 from tracker.drivers.sim import HARD_STOP_MARGIN_RAD
-from tracker.drivers.spec import DriverSpec
+from tracker.drivers.spec import SERIAL_LINK_LOST_MS, DriverSpec
 from tracker.errors import ConfigError, DriverFault
 from tracker.realtime import sleep_until
 
@@ -75,7 +76,7 @@ class SerialMotorDriver(FaultLatch):
         gear_ratio: Mapping[str, float] | None = None,
         limits_rad: Mapping[str, tuple[float, float]] | None = None,
         *,
-        link_lost_s: float = 0.25,
+        link_lost_s: float | None = None,
         reply_timeout_s: float | None = None,
         open_port: Callable[[str, int], SerialPort] = SerialPort,
     ) -> None:
@@ -94,7 +95,8 @@ class SerialMotorDriver(FaultLatch):
                                                         get_preset(a).soft_limit_rad) for a in AXES}
         self._stops = {a: max(abs(lo), abs(hi)) + HARD_STOP_MARGIN_RAD
                        for a, (lo, hi) in self._limits.items()}
-        self._link_lost_s = float(link_lost_s)
+        self._link_lost_s = (float(link_lost_s) if link_lost_s is not None
+                             else (spec.link_lost_ms or SERIAL_LINK_LOST_MS) / 1e3)
         self._timeout = reply_timeout_s or max(0.005, 3 * self._dt)
         self._open_port = open_port
         self._port: SerialPort | None = None

@@ -8,12 +8,14 @@ Forms (case-insensitive scheme):
   52381 by default;
 - ``visca+tcp://HOST:PORT`` — raw VISCA packets over TCP (PTZOptics and others on 5678); the
   port is required, there is no standard one;
-- ``serial://PATH[?baud=B&rate=HZ&watchdog_ms=MS]`` — a DC rig behind a motor controller
+- ``serial://PATH[?baud=B&rate=HZ&watchdog_ms=MS&link_lost_ms=MS]`` — a DC rig behind a motor controller
   board on a serial port (docs/serial-protocol.md). ``baud`` defaults to 115200; ``rate`` (the
   control samples per second, one exchange each) to the highest of 1000, 500, 250, 200, 100 Hz
   the line carries (``baud ≥ 500·rate``: a sample's reply is up to 40 bytes of 10 bits, at
   most 80 % of the line), so 115200 gives 200 Hz and 1000000 gives 1 kHz; ``watchdog_ms``
-  (the board zeroes the command when no command line came for that long) to 100.
+  (the board zeroes the command when no command line came for that long) to 100;
+  ``link_lost_ms`` (no answer for that long is a lost link: a fault, then reconnection) to 250
+  (a loaded host whose pseudo-terminal or USB serial delivers late may need more).
 
 HOST is a name, an IPv4 address or a bracketed IPv6 address. Nothing else (paths, queries,
 user names) is accepted for VISCA, so a typo fails at start-up with the reason rather than at
@@ -31,6 +33,7 @@ from tracker.errors import ConfigError
 VISCA_UDP_PORT = 52381
 SERIAL_BAUD = 115200
 SERIAL_WATCHDOG_MS = 100
+SERIAL_LINK_LOST_MS = 250
 SERIAL_RATES_HZ = (1000, 500, 250, 200, 100)  # the default rate: the first the line carries
 BAUD_PER_HZ = 500  # 40-byte replies of 10 bits each, the line at most 80 % busy
 _LABEL = r"[A-Za-z0-9](?:[A-Za-z0-9\-]{0,61}[A-Za-z0-9])?"
@@ -50,6 +53,7 @@ class DriverSpec:
     baud: int | None = None
     rate_hz: int | None = None
     watchdog_ms: int | None = None
+    link_lost_ms: int | None = None  # serial: None for the default (SERIAL_LINK_LOST_MS)
 
     @property
     def url(self) -> str:
@@ -57,7 +61,9 @@ class DriverSpec:
         if self.kind == "sim":
             return "sim"
         if self.kind == "serial":
-            return f"serial://{self.path}?baud={self.baud}&rate={self.rate_hz}&watchdog_ms={self.watchdog_ms}"
+            lost = "" if self.link_lost_ms is None else f"&link_lost_ms={self.link_lost_ms}"
+            return (f"serial://{self.path}?baud={self.baud}&rate={self.rate_hz}"
+                    f"&watchdog_ms={self.watchdog_ms}{lost}")
         host = f"[{self.host}]" if self.host and ":" in self.host else self.host
         return f"visca+{self.transport}://{host}:{self.port}"
 
@@ -101,7 +107,7 @@ def parse_driver_url(value: str) -> DriverSpec:
 
 
 def _parse_serial(value: str, text: str) -> DriverSpec:
-    """``serial://PATH[?baud=&rate=&watchdog_ms=]`` (see the module docstring)."""
+    """``serial://PATH[?baud=&rate=&watchdog_ms=&link_lost_ms=]`` (see the module docstring)."""
     parts = urlsplit(text)
     example = "e.g. 'serial:///dev/ttyUSB0?baud=115200'"
     if parts.netloc:
@@ -109,7 +115,7 @@ def _parse_serial(value: str, text: str) -> DriverSpec:
                           f"a serial device is an absolute path after 'serial://', {example}")
     if not parts.path.startswith("/") or parts.path == "/" or parts.fragment:
         raise ConfigError(f"driver {value!r}: no device path; {example}")
-    known = ("baud", "rate", "watchdog_ms")
+    known = ("baud", "rate", "watchdog_ms", "link_lost_ms")
     query: dict[str, int] = {}
     for key, raw in parse_qsl(parts.query, keep_blank_values=True, strict_parsing=False):
         if key not in known:
@@ -134,4 +140,8 @@ def _parse_serial(value: str, text: str) -> DriverSpec:
     watchdog = query.get("watchdog_ms", SERIAL_WATCHDOG_MS)
     if not 10 <= watchdog <= 2000:
         raise ConfigError(f"driver {value!r}: watchdog_ms {watchdog} is outside 10..2000")
-    return DriverSpec("serial", path=parts.path, baud=baud, rate_hz=rate, watchdog_ms=watchdog)
+    lost = query.get("link_lost_ms")
+    if lost is not None and not 20 <= lost <= 10_000:
+        raise ConfigError(f"driver {value!r}: link_lost_ms {lost} is outside 20..10000")
+    return DriverSpec("serial", path=parts.path, baud=baud, rate_hz=rate, watchdog_ms=watchdog,
+                      link_lost_ms=lost)

@@ -43,3 +43,17 @@ def test_good_settings_parse(value: str, spec: DriverSpec, url: str) -> None:
 def test_bad_settings_say_what_is_wrong(value: str, match: str) -> None:
     with pytest.raises(ConfigError, match=match):
         parse_driver_url(value)
+
+
+def test_a_serial_rigs_lost_link_time_is_an_option() -> None:
+    """link_lost_ms: a loaded host whose pseudo-terminal delivers late may need more than 0.25 s."""
+    from tracker.drivers.serial_motor import SerialMotorDriver
+
+    plain = parse_driver_url("serial:///dev/ttyUSB0?baud=1000000")
+    assert plain.link_lost_ms is None and "link_lost_ms" not in plain.url
+    assert SerialMotorDriver(plain)._link_lost_s == 0.25
+    spec = parse_driver_url("serial:///dev/ttyUSB0?baud=1000000&link_lost_ms=1000")
+    assert spec.link_lost_ms == 1000 and parse_driver_url(spec.url) == spec
+    assert SerialMotorDriver(spec)._link_lost_s == 1.0
+    with pytest.raises(ConfigError, match="link_lost_ms 5 is outside 20..10000"):
+        parse_driver_url("serial:///dev/ttyUSB0?link_lost_ms=5")
