@@ -479,9 +479,8 @@ def summarize_diagnosis(recs: list[dict[str, Any]]) -> str:
             if want is False:
                 for x in sel:
                     why = ", ".join(
-                        f"{e} {r['measure']} {r['value']:.2g}" + (
-                            f" flank changes {r['flank_changes']}" if "flank_changes" in r else ""
-                        )
+                        f"{e} {r['measure']} {r['value']:.2g}"
+                        + (f" flank changes {r['flank_changes']}" if "flank_changes" in r else "")
                         for e, r in (x["detectability"].get("effects") or {}).items()
                         if r.get("detectable") is False
                     )
