@@ -471,7 +471,7 @@ def summarize_diagnosis(recs: list[dict[str, Any]]) -> str:
             "  ... unresolved: the other effect takes away all of one's trace (bench/detectability.py: "
             "a dead band the load never crosses, gravity pressing it on one flank all through the run)"
         )
-        for title, want in (("not rated", None), ("unresolved", False)):
+        for title, want in (("the rest", None), ("unresolved", False)):
             sel = [x for x in pairs if (x.get("detectability") or {}).get("detectable") is want]
             if not sel:
                 continue
