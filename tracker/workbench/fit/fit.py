@@ -114,6 +114,9 @@ class FitResult:
     inverse_dynamics_error_percent: float = math.nan
     elapsed_s: float = 0.0
     correlated: tuple[tuple[str, str, float], ...] = ()
+    # The horizon the parameters were fitted over (longer than ``horizon_s`` on a coarse encoder
+    # when none was asked: :func:`fit_horizon_samples`); the fit % is reported at ``horizon_s``.
+    fit_horizon_s: float = 0.0
 
     @property
     def warnings(self) -> tuple[str, ...]:
@@ -141,6 +144,7 @@ class FitResult:
             "n_evaluations": self.n_evaluations,
             "converged": self.converged,
             "horizon_s": self.horizon_s,
+            "fit_horizon_s": self.fit_horizon_s,
             "method": self.method,
             "inverse_dynamics_error_percent": self.inverse_dynamics_error_percent,
             "elapsed_s": self.elapsed_s,
@@ -559,6 +563,7 @@ def fit_model(
             start.model,
             start.id_error_percent,
             t0,
+            fit_k=k,
         )
 
     coords = _Coords.build(model0, free_t, fit_gain)
@@ -702,6 +707,7 @@ def fit_model(
         start.id_error_percent,
         t0,
         _poorly_separated(coords.correlated(cov), stderr, fitted),
+        k,
     )
 
 
@@ -720,7 +726,9 @@ def _finish(
     id_error: float,
     t0: float,
     correlated: tuple[tuple[str, str, float], ...] = (),
+    fit_k: int | None = None,
 ) -> FitResult:
+    fit_k = k if fit_k is None else fit_k
     score = score_model(meas, model, est, k)
     return FitResult(
         model=model,
@@ -739,6 +747,7 @@ def _finish(
         inverse_dynamics_error_percent=id_error,
         elapsed_s=time.perf_counter() - t0,
         correlated=correlated,
+        fit_horizon_s=fit_k * meas.dt_s,
     )
 
 

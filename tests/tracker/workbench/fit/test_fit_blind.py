@@ -100,6 +100,7 @@ def test_a_coarse_encoder_gets_windows_long_enough_to_move_several_counts() -> N
     assert _rel(res.params["inertia.J"], true["inertia.J"]) < 0.05
     assert _rel(res.params["saturation.limit"], true["saturation.limit"]) < 0.05
     assert math.isclose(res.horizon_s, 0.03)  # the fit % is still reported at the asked horizon
+    assert res.fit_horizon_s > 2 * res.horizon_s and res.to_dict()["fit_horizon_s"] == res.fit_horizon_s
 
 
 def test_the_fit_horizon_grows_only_on_a_coarse_encoder() -> None:
