@@ -467,6 +467,24 @@ def summarize_diagnosis(recs: list[dict[str, Any]]) -> str:
             sel = [x for x in pairs if x["label"] == lab]
             vs = ", ".join(f"{x['verdict']}→{x.get('verdict2')}" for x in sel)
             w(f"  {lab:30s} {sum(x['pair_found'] for x in sel)}/{len(sel)}   {vs}")
+        w(
+            "  ... unresolved: the other effect takes away all of one's trace (bench/detectability.py: "
+            "a dead band the load never crosses, gravity pressing it on one flank all through the run)"
+        )
+        for title, want in (("the rest", None), ("unresolved", False)):
+            sel = [x for x in pairs if (x.get("detectability") or {}).get("detectable") is want]
+            if not sel:
+                continue
+            w(f"  {title:18s} {_pct(sum(x['pair_found'] for x in sel), len(sel))}")
+            if want is False:
+                for x in sel:
+                    why = ", ".join(
+                        f"{e} {r['measure']} {r['value']:.2g}"
+                        + (f" flank changes {r['flank_changes']}" if "flank_changes" in r else "")
+                        for e, r in (x["detectability"].get("effects") or {}).items()
+                        if r.get("detectable") is False
+                    )
+                    w(f"    {x['id']:30s} {'found' if x['pair_found'] else 'missed'}: {why}")
     return "\n".join(out)
 
 

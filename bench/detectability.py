@@ -29,6 +29,9 @@ only (nothing of the workbench under test):
   speed resolution (a count per rest window) is reported beside it (``stribeck_resolution``).
 * the others (delay, saturation, compliance) act through the dynamics, not as a torque of
   the state: not rated (``None``).
+* pairs: a dead band beside gravity is also rated by whether the load ever changes flank
+  (:func:`flank_changes`); gravity pressing the load on one flank all through the run leaves
+  the gap no trace. Other pairs are not rated (:func:`_pair`).
 """
 
 from __future__ import annotations
@@ -152,6 +155,8 @@ def detectability(
     logs, pairs, effects that act through the dynamics).
     """
     hidden = list(truth["hidden"])
+    if len(hidden) == 2:
+        return _pair(truth, t, u, theta)
     if len(hidden) != 1:
         return {"effect": "+".join(hidden) or None, "measure": None, "value": None, "detectable": None}
     effect = hidden[0]
@@ -169,6 +174,60 @@ def detectability(
     # slow signature under quantization noise a narrow one).
     z = max(_z(effect, p, truth, t, u, theta, fc) for fc in CUTOFF_HZ)
     return {"effect": effect, "measure": "z", "value": z, "detectable": z >= MIN_Z}
+
+
+def _pair(truth: Mapping[str, Any], t: FloatArray, u: FloatArray, theta: FloatArray) -> dict[str, Any]:
+    """A pair of effects: rated where the other effect can take away all of one's trace.
+
+    A dead band beside gravity: the load leaves the flank gravity presses it on only where the
+    torque the drive must pass to it, ``J_load·α + Tg·sin(θ + φ)``, changes sign (beyond the load
+    disturbance's RMS either way: :func:`flank_changes`). A gap that is never crossed leaves no
+    trace in the log, however wide it is; one that is crossed is rated as a single dead band
+    (its width against the reading's spread). Every other pair is not rated (a torque effect
+    beside another shares part of its signature, but what the rests and starts tell apart, a
+    bias from a Coulomb asymmetry under gravity, is beyond a regression on the moving samples).
+
+    Returns ``{"effect", "measure", "value", "detectable", "effects"}``: ``detectable`` False
+    when an effect of the pair is rated undetectable, else None.
+    """
+    hidden = list(truth["hidden"])
+    p = {k: float(v) for k, v in truth["params"].items()}
+    rated: dict[str, dict[str, Any]] = {}
+    if set(hidden) == {"backlash", "gravity"}:
+        single = detectability({**truth, "hidden": ["backlash"]}, t, u, theta)
+        flips = flank_changes(p, truth, t, theta)
+        rated["backlash"] = {
+            "measure": single["measure"],
+            "value": single["value"],
+            "flank_changes": flips,
+            "detectable": bool(single["detectable"]) and flips > 0,
+        }
+    verdicts = [r["detectable"] for r in rated.values()]
+    return {
+        "effect": "+".join(hidden),
+        "measure": "pair",
+        "value": None,
+        "detectable": False if False in verdicts else None,
+        "effects": rated,
+    }
+
+
+def flank_changes(p: Mapping[str, float], truth: Mapping[str, Any], t: FloatArray, theta: FloatArray) -> int:
+    """How often the torque passed to the load, ``J_load·α + Tg·sin(θ + φ)``, changes sign by more
+    than the load disturbance's RMS either way: each is the load crossing its dead band.
+
+    The logged angle is the motor's (the load lags it by at most half the gap, which moves the
+    sine by a fraction of a degree); α from it low-passed at the widest band of the ratings."""
+    dt = float(np.median(np.diff(t)))
+    _, _, th, _, al = _signals(t, np.zeros_like(theta), theta, max(CUTOFF_HZ))
+    j_load = p["inertia.J"] * (1.0 - p["inertia.motor_fraction"])
+    passed = j_load * al + p.get("gravity.torque", 0.0) * np.sin(th + p.get("gravity.phase", 0.0))
+    edge = max(1, int(round(0.05 / dt)))
+    passed = passed[edge:-edge]
+    band = float(truth.get("noise", {}).get("disturbance_rms_nm", 0.0))
+    side = np.where(passed > band, 1, np.where(passed < -band, -1, 0))
+    held = side[side != 0]
+    return int(np.count_nonzero(held[1:] != held[:-1]))
 
 
 def _stiction(
@@ -275,4 +334,11 @@ def _z(
     return float(np.sqrt(np.mean(sig**2)) / sigma * math.sqrt(effective_samples(noise)))
 
 
-__all__ = ["MIN_Z", "detectability", "effective_samples", "reading_spread_rad", "starts_from_rest"]
+__all__ = [
+    "MIN_Z",
+    "detectability",
+    "effective_samples",
+    "flank_changes",
+    "reading_spread_rad",
+    "starts_from_rest",
+]

@@ -190,7 +190,13 @@ def format_fit(meas: Measurement, res: FitResult) -> str:
         _header(meas, res.model),
         f"fit {res.fit_percent:.3f} %   increment fit {res.fit_percent_increment:.2f} %   "
         f"RMS {res.rms_deg:.4g} deg   "
-        f"({res.method}, horizon {res.horizon_s * 1e3:.0f} ms, {res.n_evaluations} evaluations, "
+        f"({res.method}, horizon {res.horizon_s * 1e3:.0f} ms"
+        + (
+            f", fitted over {res.fit_horizon_s * 1e3:.0f} ms windows (coarse encoder)"
+            if res.fit_horizon_s > res.horizon_s * (1 + 1e-9)
+            else ""
+        )
+        + f", {res.n_evaluations} evaluations, "
         f"{'converged' if res.converged else 'NOT converged'}, {res.elapsed_s:.2f} s)",
         "",
         f"{'parameter':<28} {'value':>12} {'± stderr':>11} {'rel.':>6} {'start':>12}  unit",

@@ -1,11 +1,14 @@
 """How well this run pins each fitted parameter: standard error, a flag, and the experiment that pins it.
 
 A parameter is *poorly determined* when its relative standard error exceeds
-``UNCERTAIN_FRACTION`` (the fit's own threshold, 10 %) or when it is strongly correlated with
-another (|r| ≥ ``CORRELATION_WARNING``) and that costs precision (the fitter's
-``correlated`` pairs), or when it ended on a bound of its catalogue range (not at zero). The
-experiment comes from the parameter's effect in the catalogue (``Effect.experiment``), so it
-says what to record to pin that parameter.
+``UNCERTAIN_FRACTION`` (the fit's own threshold, 10 %), or when it ended on a bound of its
+catalogue range (not at zero), where the standard error means nothing. The standard error is
+the marginal one of the full covariance (the log's information on that parameter with every
+other fitted beside it), so a strong correlation with another (|r| ≥ ``CORRELATION_WARNING``,
+the fitter's ``correlated`` pairs) already widens it where it costs precision: the reason names
+the partner, but a correlation is no flag of its own (a sharp parameter correlated with a loose
+one is still pinned by the log). The experiment comes from the parameter's effect in the
+catalogue (``Effect.experiment``), so it says what to record to pin that parameter.
 """
 
 from __future__ import annotations
@@ -95,18 +98,19 @@ def parameter_certainty(
                 if math.isfinite(rel)
                 else "no finite standard error"
             )
-        if name in partners:
-            reasons.append("correlated with " + ", ".join(partners[name]))
         bound = _at_bound(name, value)
         if bound is not None:
             reasons.append(f"at the catalogue's {bound} (the fit ran out of the model's range there)")
+        flagged = bool(reasons)
+        if name in partners:
+            reasons.append("correlated with " + ", ".join(partners[name]))
         effect = CATALOGUE.get(name.split(".")[0])
         out.append(
             ParameterCertainty(
                 name,
                 value,
                 se,
-                bool(reasons),
+                flagged,
                 "; ".join(reasons),
                 effect.experiment if effect is not None else None,
             )

@@ -87,3 +87,36 @@ def test_a_clear_delay_keeps_its_tight_error() -> None:
     assert res.stderr["delay.seconds"] < 5e-4
     flags = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated)}
     assert not flags["delay.seconds"].poorly_determined
+
+
+def test_a_coarse_encoder_gets_windows_long_enough_to_move_several_counts() -> None:
+    """saturation-010: a 500 Hz PID log on a 500-count encoder whose drive clips. Over the default
+    30 ms a window moves about a count, the size of the reading's own error and of the start
+    state's error from quantized data, and the fit traded the inertia against them: J +20 %,
+    the clip level +15 % (standard errors 3-6 %). Windows long enough to move four counts on
+    average (the fit's horizon on a coarse encoder) pin both within 5 %."""
+    truth, true, res = _fit("saturation-010")
+    assert truth["encoder_counts_per_rev"] == 500
+    assert _rel(res.params["inertia.J"], true["inertia.J"]) < 0.05
+    assert _rel(res.params["saturation.limit"], true["saturation.limit"]) < 0.05
+    assert math.isclose(res.horizon_s, 0.03)  # the fit % is still reported at the asked horizon
+    assert res.fit_horizon_s > 2 * res.horizon_s and res.to_dict()["fit_horizon_s"] == res.fit_horizon_s
+
+
+def test_the_fit_horizon_grows_only_on_a_coarse_encoder() -> None:
+    import numpy as np
+
+    from tracker.workbench.fit.fit import MAX_HORIZON_STRETCH, MIN_WINDOW_COUNTS, fit_horizon_samples
+
+    t = np.arange(20000) * 1e-3
+    theta = 0.3 * np.sin(2 * np.pi * 0.2 * t)  # 0.38 rad/s at most: 0.007 rad in 30 ms on average
+    u = np.zeros_like(t)
+    assert fit_horizon_samples(Measurement(t, u, theta, "smooth"), 30) == 30  # unquantized
+    fine = np.round(theta / 1e-4) * 1e-4
+    assert fit_horizon_samples(Measurement(t, u, fine, "fine"), 30) == 30
+    q = 2 * np.pi / 500
+    coarse = np.round(theta / q) * q
+    k = fit_horizon_samples(Measurement(t, u, coarse, "coarse"), 30)
+    assert 30 < k <= MAX_HORIZON_STRETCH * 30
+    moved = float(np.mean(np.abs(coarse[k:] - coarse[:-k])))
+    assert moved >= MIN_WINDOW_COUNTS * q or k == MAX_HORIZON_STRETCH * 30
