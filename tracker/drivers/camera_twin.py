@@ -13,8 +13,9 @@ the motor through a dead band of ``backlash`` (it lags by up to the play after a
 
 Pan-tilt limits (VISCA Pan-tiltLimitSet, :meth:`CameraTwin.set_limit`) narrow the range the way
 a camera's own limits do: a position move's target is clamped to them, and a drive toward one
-is slowed to ``sqrt(2·a·room)``, the fastest speed that still stops there at the head's own
-acceleration, so the head comes to rest on the limit whether or not another command arrives.
+is slowed to the fastest speed that still stops there at the head's own acceleration
+(``sqrt(2·a·room)``, less a step's reaction), so the head comes to rest on the limit whether
+or not another command arrives.
 A head that cannot stop in time (a limit set just ahead of it at speed) passes it and brakes;
 a head outside its limits may move back in, never further out.
 """
@@ -57,6 +58,15 @@ class AxisTwin:
         hi = self.hi_rad if self.limit_hi_rad is None else min(self.hi_rad, self.limit_hi_rad)
         return lo, hi
 
+    def stop_speed_rad_s(self, room_rad: float, dt_s: float) -> float:
+        """The fastest speed from which the head, stepping ``dt_s`` at a time, still stops
+        within ``room_rad``: ``v·1.5·dt + v²/(2a) = room`` (one step to react, half a step of
+        the discrete braking), 0 without room."""
+        if room_rad <= 0.0:
+            return 0.0
+        a, t = self.accel_rad_s2, 1.5 * dt_s
+        return a * (-t + math.sqrt(t * t + 2.0 * room_rad / a))
+
     def step(self, dt_s: float, arrival_rad: float) -> bool:
         """Advance ``dt_s``; True when a position move arrived during this step."""
         arrived = False
@@ -64,7 +74,7 @@ class AxisTwin:
         if self.mode == "drive":
             want = self.drive_rad_s
             room = hi - self.motor_rad if want > 0 else self.motor_rad - lo
-            want = math.copysign(min(abs(want), math.sqrt(2.0 * self.accel_rad_s2 * max(room, 0.0))), want)
+            want = math.copysign(min(abs(want), self.stop_speed_rad_s(room, dt_s)), want)
         elif self.mode == "position":
             self.target_rad = min(max(self.target_rad, lo), hi)
             e = self.target_rad - self.motor_rad
@@ -83,7 +93,7 @@ class AxisTwin:
             # change of the stopping profile); faster than that it passes and brakes beyond.
             room = side * (limit - before)
             crossed = side * (self.motor_rad - limit) > 0.0 and room >= 0.0
-            if crossed and abs(self.speed_rad_s) <= math.sqrt(2.0 * self.accel_rad_s2 * room) + dv:
+            if crossed and abs(self.speed_rad_s) <= self.stop_speed_rad_s(room, dt_s) + 2.0 * dv:
                 self.motor_rad, self.speed_rad_s = limit, 0.0
         if not self.lo_rad <= self.motor_rad <= self.hi_rad:
             self.motor_rad = min(max(self.motor_rad, self.lo_rad), self.hi_rad)
