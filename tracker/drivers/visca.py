@@ -29,7 +29,8 @@ drives stop at them.
 
 The soft limits are also the camera's own: on every (re)connection, and whenever
 :meth:`ViscaCamera.set_limits` changes them, the driver sends Pan-tiltLimitSet for both corners
-(rounded inward to whole counts), so the camera's own loop stops the head at them whatever
+(rounded inward to whole counts; it replaces limits set on the camera by other means, and a
+driver built without soft limits leaves them alone), so the camera's own loop stops the head at them whatever
 the host does next: a command period late, a stalled process, a dead one. A camera that
 answers with an error keeps running without them; ``describe()["camera_limits"]`` then says
 "refused" (and the log warns): the host-side speed law is the only guard. Toward a limit, the
@@ -98,6 +99,7 @@ class ViscaCamera(FaultLatch):
         # The camera's own limits: "not programmed" (not connected yet), "programming", "set",
         # "refused" (an error reply: the host-side law is the only guard) or "failed" (no answer;
         # tried again next cycle). ``_limits_dirty``: the soft limits changed since programmed.
+        self._owns_limits = limits_rad is not None  # without soft limits, leave the camera's alone
         self._camera_limits = "not programmed"
         self._camera_limits_error: str | None = None
         self._camera_limits_counts: dict[str, tuple[int, int]] = {}
@@ -173,7 +175,7 @@ class ViscaCamera(FaultLatch):
             target = self._target[axis]
             if target is not None:
                 self._target[axis] = min(max(target, limits[axis][0]), limits[axis][1])
-        self._limits_dirty = True
+        self._owns_limits = self._limits_dirty = True
 
     def camera_limit_counts(self) -> dict[str, tuple[int, int]]:
         """What Pan-tiltLimitSet sends for the soft limits: per corner ("up_right",
@@ -448,7 +450,8 @@ class ViscaCamera(FaultLatch):
                 backoff = min(2 * backoff, BACKOFF_MAX_S)
                 continue
             try:
-                await self._program_limits()  # before any motion: every (re)connection
+                if self._owns_limits:
+                    await self._program_limits()  # before any motion: every (re)connection
             except DriverFault as exc:  # no answer: the link is not usable yet
                 self._last_error = str(exc)
                 await self._link.close()
@@ -635,7 +638,8 @@ class ViscaCamera(FaultLatch):
             limit = hi if direction > 0 else lo
             if held is None:
                 speed = max(abs(drive.speed_rad_s), abs(self._speed[axis]))
-                room = direction * (limit - self.read_encoder(axis))
+                room = min(direction * (limit - self.read_encoder(axis)),
+                           direction * (limit - self._position_ahead(axis)))
                 reach = handoff_room_rad(self.profile, axis, speed, period_s=self._period,
                                          latency_s=latency_s)
                 if room > reach:
@@ -668,6 +672,14 @@ class ViscaCamera(FaultLatch):
         self._sent_drive = None
         counts = self._counts_inside("pan", end_pan), self._counts_inside("tilt", end_tilt)
         return True, vp.pan_tilt_position(codes["pan"], codes["tilt"], *counts)
+
+    def _position_ahead(self, axis: str) -> float:
+        """Where the head may be by now: the last reported angle advanced by the modelled speed
+        over the report's whole age (up to 1 s), not two periods as :meth:`read_encoder`; after
+        the host stalled, the head ran on at that speed (with the stall's missed cycles, the
+        hand-off then comes on the first cycle back instead of an RTT later)."""
+        age = min(time.monotonic() - self._position_t, 1.0) if self._have_position else 0.0
+        return self._position[axis] + self._speed[axis] * age
 
     def _handoff_code(self, axis: str, drive: AxisDrive) -> int:
         """The speed code of a handed-off move: the drive's, or the one the head still runs at."""

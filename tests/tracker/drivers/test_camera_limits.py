@@ -217,3 +217,25 @@ async def test_changing_the_soft_limits_programs_the_camera_again() -> None:
         await until(lambda: cam.describe()["camera_limits"]["state"] == "set", 3.0, "set")
         assert_programmed(twin, crossed)
         assert cam.limits("pan") == crossed["pan"]
+
+
+async def test_a_driver_without_soft_limits_leaves_the_camera_s_own_alone() -> None:
+    """Limits an installer set on the camera are not widened by a driver given none (the
+    command-line speed-id job); set_limits then programs them."""
+    emu = CameraEmulator("generic", seed=5)
+    port = await emu.start()
+    q = emu.profile.rad_per_count
+    emu.twin.set_limit(True, 500 * q, 200 * q)
+    cam = ViscaCamera(parse_driver_url(f"visca+udp://127.0.0.1:{port}"), get_profile("generic"))
+    try:
+        cam.start()
+        await until(lambda: cam.ready, 5.0, "connection")
+        assert cam.describe()["camera_limits"] == {"state": "not programmed", "guard": "host only",
+                                                   "error": None}
+        assert emu.twin.axes["pan"].bounds()[1] == 500 * q
+        cam.set_limits(LIMITS)
+        await until(lambda: cam.describe()["camera_limits"]["state"] == "set", 3.0, "set")
+        assert_programmed(emu.twin, LIMITS)
+    finally:
+        await cam.close()
+        await emu.close()
