@@ -6,7 +6,7 @@ a round trip of ``--latency-ms``. When the head comes within a trigger distance 
 the driver's loop thread is frozen for N command periods (the host stalls: a swap storm, a
 debugger, a GC pause), or for good (N = inf: the host died in the middle of a speed drive).
 The figure is the worst excursion of the head (the twin's motor angle) past the soft limit,
-over trigger distances from 0.5 to 32 degrees and both limits of each axis.
+over trigger distances from 0.5 to 32 degrees (``--triggers``) and both limits of each axis.
 
     python bench/bench_camera_limits.py [--profiles generic,ptzoptics] [--latency-ms 20]
         [--stalls 1,2,5,inf] [--no-camera-limits]
@@ -161,6 +161,8 @@ async def main() -> None:
     parser.add_argument("--profiles", default=",".join(profile_names()))
     parser.add_argument("--latency-ms", type=float, default=20.0)
     parser.add_argument("--stalls", default="1,2,5,inf")
+    parser.add_argument("--triggers", default=",".join(f"{t:g}" for t in TRIGGERS_DEG),
+                        help="distances (deg) before the limit at which the host stalls")
     parser.add_argument("--no-camera-limits", action="store_true",
                         help="the emulated camera answers Pan-tiltLimitSet with an error")
     args = parser.parse_args()
@@ -177,7 +179,9 @@ async def main() -> None:
             for stall in stalls:
                 worst = -math.inf
                 where = ""
-                triggers = TRIGGERS_DEG if stall is not None else (8.0,)
+                triggers = [float(t) for t in args.triggers.split(",")]
+                if stall is None and not args.no_camera_limits:
+                    triggers = [8.0]  # a dead host with the camera's limits: one trigger tells
                 for axis in ("pan", "tilt"):
                     for side in (1, -1):
                         for trig in triggers:

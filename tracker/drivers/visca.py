@@ -28,17 +28,18 @@ limits (the engine's, within the camera's own range) clamp every absolute target
 drives stop at them.
 
 The soft limits are also the camera's own: on every (re)connection, and whenever
-:meth:`ViscaCamera.set_limits` changes them, the driver sends Pan-tiltLimitSet for both corners
-(rounded inward to whole counts; it replaces limits set on the camera by other means, and a
-driver built without soft limits leaves them alone), so the camera's own loop stops the head at them whatever
-the host does next: a command period late, a stalled process, a dead one. A camera that
-answers with an error keeps running without them; ``describe()["camera_limits"]`` then says
-"refused" (and the log warns): the host-side speed law is the only guard. Toward a limit, the
-last stretch of a speed drive is handed to the camera's position loop too: once the head is
-within its stopping distance (plus the latency and three command periods) of the limit, the
-driver sends an AbsolutePosition to the limit (a rate drive) or to the target (clamped) at
-the drive's speed instead of another Pan-tiltDrive, so the camera stops there by itself even
-without limits of its own.
+:meth:`ViscaCamera.set_limits` changes them, the driver sends Pan-tiltLimitSet for both
+corners (rounded inward to whole counts; it replaces limits set on the camera by other means,
+and a driver built without soft limits leaves them alone), so the camera's own loop stops the
+head at them whatever the host does next: a command period late, a stalled process, a dead
+one. A camera that answers with an error keeps running without them;
+``describe()["camera_limits"]`` then says "refused" (and the log warns): the host is the only
+guard (the speed law, and the hand-off below). Toward a limit, the last stretch of a speed
+drive is handed to the camera's position loop too: once the head is within its stopping
+distance (plus the latency and three command periods) of the limit, the driver sends an
+AbsolutePosition to the limit (a rate drive) or to the target (clamped) at the drive's speed
+instead of another Pan-tiltDrive, so the camera stops there by itself even without limits of
+its own.
 """
 
 from __future__ import annotations
@@ -524,8 +525,8 @@ class ViscaCamera(FaultLatch):
                                              retries=self._retries, completion_timeout_s=2.0)
         except ViscaError as exc:
             self._camera_limits, self._camera_limits_error = "refused", str(exc)
-            log.warning("camera %s refused its pan-tilt limits (%s): the host-side speed law is "
-                        "the only guard of the soft limits", self.spec.url, exc)
+            log.warning("camera %s refused its pan-tilt limits (%s): the host (speed law and "
+                        "hand-off) is the only guard of the soft limits", self.spec.url, exc)
         except DriverFault as exc:
             self._camera_limits, self._camera_limits_error = "failed", str(exc)
             if not quiet:
@@ -623,8 +624,9 @@ class ViscaCamera(FaultLatch):
     def _handoff_packet(self, latency_s: float) -> tuple[bool, bytes | None]:
         """The last stretch toward a limit for the camera's own position loop (see the module
         docstring): (True, an AbsolutePosition or None when the same one went out already), or
-        (False, None) to keep steering by speed. A hand-off holds while the axis' drive keeps its direction or
-        stops; a reversal, or a rate or target forgotten, ends it."""
+        (False, None) to keep steering by speed. A hand-off holds while the axis' drive keeps its
+        direction or stops; a reversal, or a rate or target forgotten, ends it. The other axis
+        goes to its target, to its limit ahead when driven by rate, or stops where it would."""
         ends: dict[str, float] = {}
         for axis in AXES:
             drive, target, held = self._drive[axis], self._target[axis], self._handoff[axis]
@@ -656,12 +658,14 @@ class ViscaCamera(FaultLatch):
         codes = {}
         for axis in AXES:
             drive = self._drive[axis]
-            if axis not in ends:  # the other axis: its target, its limit ahead, or where it stands
+            if axis not in ends:
                 target = self._target[axis]
                 lo, hi = self._limits[axis]
+                speed = self._speed[axis]
+                stop_at = self.read_encoder(axis) + speed * abs(speed) / (2.0 * self.profile.accel_rad_s2)
                 ends[axis] = (target if target is not None
                               else (hi if drive.direction > 0 else lo) if drive.direction != 0
-                              else self._position[axis])
+                              else min(max(stop_at, lo), hi))
             codes[axis] = self._handoff_code(axis, drive)
         end_pan, end_tilt = ends["pan"], ends["tilt"]
         dead = {a: dead_band_rad(self.profile, a, self._period) for a in AXES}

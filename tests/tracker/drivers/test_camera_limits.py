@@ -139,10 +139,12 @@ async def test_a_host_stalled_mid_drive_never_lets_the_head_pass_a_soft_limit(
             assert twin.past[axis] <= 1e-12, (axis, twin.past[axis] / DEG)
 
 
-async def test_a_camera_that_refuses_limit_set_is_shown_and_the_hand_off_still_stops_the_head() -> None:
+@pytest.mark.parametrize("steer", ["rate", "target"])
+async def test_a_camera_refusing_limit_set_is_shown_and_the_hand_off_still_stops_the_head(steer: str) -> None:
     """A camera without Pan-tiltLimitSet answers a syntax error: the status says so (the host is
-    the only guard). The last stretch toward the limit is still an absolute move to the limit,
-    so a host that dies once it was sent leaves the head stopped on the limit, not past it."""
+    the only guard). The last stretch toward the limit is still an absolute move to the limit
+    (a rate drive) or to the target, so a host that dies once it was sent leaves the head
+    stopped there, not past the limit."""
     prof = get_profile("generic")
     start = {"pan": run_up(prof, "pan", 1, 0.0), "tilt": 0.0}
     async with rig(limit_commands=False, start=start, link_lost_s=5.0) as (cam, _emu, twin):
@@ -159,7 +161,11 @@ async def test_a_camera_that_refuses_limit_set_is_shown_and_the_hand_off_still_s
                 freeze(cam, release, 3600.0)
 
         twin.watch = watch
-        cam.set_rate("pan", prof.max_speed_rad_s("pan"))
+        end = LIMITS["pan"][1] - (0.0 if steer == "rate" else 0.5 * DEG)
+        if steer == "rate":
+            cam.set_rate("pan", prof.max_speed_rad_s("pan"))
+        else:
+            cam.set_target("pan", end)
         try:
             await until(lambda: frozen, 10.0, "the hand-off to the camera's position loop")
             await until(lambda: not twin.moving(), 10.0, "the head at rest")
@@ -167,7 +173,7 @@ async def test_a_camera_that_refuses_limit_set_is_shown_and_the_hand_off_still_s
             twin.watch = None
             release.set()
         assert twin.past["pan"] <= 1e-12
-        assert twin.past["pan"] > -0.2 * DEG  # it went all the way to the limit
+        assert twin.console("pan") == pytest.approx(end, abs=0.1 * DEG)  # all the way there
 
 
 def camera_bounds_deg(twin: CameraTwin, axis: str) -> tuple[float, float]:
