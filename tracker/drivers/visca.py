@@ -350,7 +350,7 @@ class ViscaCamera(FaultLatch):
             for i, axis in enumerate(AXES):
                 ends = sorted(math.degrees(self.profile.to_rad(axis, counts[c][i]))
                               for c in ("down_left", "up_right"))
-                out[f"{axis}_deg"] = [round(v, 3) for v in ends]
+                out[f"{axis}_deg"] = [round(v, 4) for v in ends]
         return out
 
     # -- one-shot commands ----------------------------------------------------------------------

@@ -97,17 +97,26 @@ def run_up(profile: CameraProfile, axis: str, side: int, trigger_rad: float) -> 
     return min(max(x, lo + 1 * DEG), hi - 1 * DEG)
 
 
-STALLS = [2, 5, 50, None]  # command periods; None: frozen for good
+def kill(cam: ViscaCamera) -> None:
+    """Cancel the driver's command cycle where it runs, sending nothing (a host process gone)."""
+    lt, task = cam._loop_thread, cam._task
+    assert lt is not None and task is not None
+    lt.loop.call_soon_threadsafe(task.cancel)
 
 
-@pytest.mark.parametrize("stall", STALLS, ids=lambda s: "forever" if s is None else f"{s}-periods")
+STALLS: list[int | str | None] = [2, 5, 50, None, "killed"]  # command periods; None: frozen for good
+
+
+@pytest.mark.parametrize("stall", STALLS, ids=lambda s: "forever" if s is None else str(s) + (
+    "" if s == "killed" else "-periods"))
 @pytest.mark.parametrize("side", [1, -1], ids=["up-right", "down-left"])
 @pytest.mark.parametrize("name", profile_names())
 async def test_a_host_stalled_mid_drive_never_lets_the_head_pass_a_soft_limit(
-    name: str, side: int, stall: int | None
+    name: str, side: int, stall: int | str | None
 ) -> None:
     """Both axes at full speed toward one corner; 2 deg before the first soft limit the driver's
-    thread freezes for N periods (or for good). The head must stop at or inside every limit."""
+    thread freezes for N periods (or for good), or its command cycle is cancelled. The head must
+    stop at or inside every limit."""
     prof = get_profile(name)
     trigger = 2 * DEG
     start = {a: run_up(prof, a, side, trigger) for a in AXES}
@@ -120,14 +129,17 @@ async def test_a_host_stalled_mid_drive_never_lets_the_head_pass_a_soft_limit(
         def watch() -> None:
             if not frozen and max(twin.past.values()) >= -trigger:
                 frozen.append(time.monotonic())
-                freeze(cam, release, 3600.0 if stall is None else stall / RATE_HZ)
+                if stall == "killed":
+                    kill(cam)
+                else:
+                    freeze(cam, release, 3600.0 if not isinstance(stall, int) else stall / RATE_HZ)
 
         twin.watch = watch
         for axis in AXES:
             cam.set_rate(axis, side * prof.max_speed_rad_s(axis))
         try:
             await until(lambda: frozen, 20.0, "the trigger")
-            if stall is not None:
+            if isinstance(stall, int):
                 await asyncio.sleep(stall / RATE_HZ)
             await until(lambda: not twin.moving(), 20.0, "the head at rest")
             await asyncio.sleep(0.2)
