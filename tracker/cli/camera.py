@@ -53,7 +53,8 @@ async def _serve(args: argparse.Namespace) -> None:
     port = await emulator.start()
     scheme = "visca+tcp" if args.tcp else "visca+udp"
     print(f"camera emulator ({args.profile}) on {scheme}://{args.host}:{port} "
-          f"loss {args.loss:g}, latency {args.latency_ms:g} ms; Ctrl-C to stop", flush=True)
+          f"loss {args.loss:g}, latency {args.latency_ms:g} ms"
+          f"{', Pan-tiltLimitSet refused' if args.no_limits else ''}; Ctrl-C to stop", flush=True)
     loop = asyncio.get_running_loop()
     end = None if args.duration_s is None else loop.time() + args.duration_s
     try:
