@@ -9,8 +9,10 @@ target, send one steering command: a Pan-tiltDrive from :mod:`tracker.drivers.ca
 (a lost one is superseded by the next); a stop is repeated for a few cycles.
 
 No answer for ``link_lost_s`` latches the fault "link lost" (the console shows it), disables
-the driver and reconnects with back-off (0.25 s doubling to 5 s). After any (re)connection the
-targets are forgotten: the camera does not move until enabled again and given a target.
+the driver and reconnects with back-off (0.25 s doubling to 5 s); a reconnection first stops
+the head (a speed drive sent before the loss would otherwise run on to the limits). After any
+(re)connection the targets are forgotten: the camera does not move until enabled again and
+given a target.
 
 :meth:`ViscaCamera.take_over` lends the camera to a job that drives it itself (the console's
 speed-table identification): until :meth:`ViscaCamera.hand_back` the supervisor sends no
@@ -453,6 +455,11 @@ class ViscaCamera(FaultLatch):
             try:
                 if self._owns_limits:
                     await self._program_limits()  # before any motion: every (re)connection
+                if self.connects > 0:
+                    # The link was lost: a speed drive sent before may still be running (the stop
+                    # the disable queued died with the link), so stop the head first.
+                    await self._link.request(vp.pan_tilt_stop(), timeout_s=self._timeout,
+                                             retries=self._retries)
             except DriverFault as exc:  # no answer: the link is not usable yet
                 self._last_error = str(exc)
                 await self._link.close()

@@ -209,15 +209,21 @@ async def test_limits_are_programmed_on_connect_and_again_after_a_reconnection()
         status = cam.describe()["camera_limits"]
         assert status["state"] == "set" and status["guard"] == "camera and host"
         assert -90.0 <= status["pan_deg"][0] < -89.9 and 44.9 < status["tilt_deg"][1] <= 45.0
-        # the camera loses its limits (a power cycle) and the link drops: the reconnection sets them
+        # the camera loses its limits (a power cycle) and the link drops in the middle of a slow
+        # speed drive: the reconnection sets them again and stops the drive (bug: the stop the
+        # disable queued died with the link, and the head ran on to the mechanical range)
         twin.set_limit(True, None, None)
         twin.set_limit(False, None, None)
+        cam.set_rate("pan", math.radians(3.0))
+        await until(lambda: twin.axes["pan"].speed_rad_s != 0.0, 2.0, "drive")
         emu.drop = lambda direction, seq, payload: True
         await until(lambda: cam.faults(), 3.0, "link lost")
+        assert twin.axes["pan"].speed_rad_s != 0.0  # still driving: nothing reached the camera
         emu.drop = None
         await until(lambda: cam.connects >= 2 and cam.ready, 10.0, "reconnection")
         assert_programmed(twin, LIMITS)
         assert cam.describe()["camera_limits"]["state"] == "set"
+        await until(lambda: twin.axes["pan"].speed_rad_s == 0.0, 1.0, "the drive stopped")
 
 
 async def test_changing_the_soft_limits_programs_the_camera_again() -> None:
