@@ -61,9 +61,11 @@ class AxisTwin:
     def stop_speed_rad_s(self, room_rad: float, dt_s: float) -> float:
         """The fastest speed from which the head, stepping ``dt_s`` at a time, still stops
         within ``room_rad``: ``v·1.5·dt + v²/(2a) = room`` (one step to react, half a step of
-        the discrete braking), 0 without room."""
+        the discrete braking), 0 without room (inf with infinite room)."""
         if room_rad <= 0.0:
             return 0.0
+        if math.isinf(room_rad):
+            return math.inf
         a, t = self.accel_rad_s2, 1.5 * dt_s
         return a * (-t + math.sqrt(t * t + 2.0 * room_rad / a))
 
@@ -71,9 +73,12 @@ class AxisTwin:
         """Advance ``dt_s``; True when a position move arrived during this step."""
         arrived = False
         lo, hi = self.bounds()
+        # Only the pan-tilt limits brake a drive; the mechanical range stops it dead, as before.
+        set_lo = -math.inf if self.limit_lo_rad is None else lo
+        set_hi = math.inf if self.limit_hi_rad is None else hi
         if self.mode == "drive":
             want = self.drive_rad_s
-            room = hi - self.motor_rad if want > 0 else self.motor_rad - lo
+            room = set_hi - self.motor_rad if want > 0 else self.motor_rad - set_lo
             want = math.copysign(min(abs(want), self.stop_speed_rad_s(room, dt_s)), want)
         elif self.mode == "position":
             self.target_rad = min(max(self.target_rad, lo), hi)
@@ -88,7 +93,7 @@ class AxisTwin:
         before = self.motor_rad
         self.speed_rad_s += min(max(want - self.speed_rad_s, -dv), dv)
         self.motor_rad += self.speed_rad_s * dt_s
-        for limit, side in ((hi, 1.0), (lo, -1.0)):
+        for limit, side in ((set_hi, 1.0), (set_lo, -1.0)):
             # The camera's loop arrives on a limit it was braking for (within one step's speed
             # change of the stopping profile); faster than that it passes and brakes beyond.
             room = side * (limit - before)
