@@ -108,6 +108,9 @@ function describeDriver(d) {
   if (d.achieved_rate_hz != null) parts.push(`${fmt(d.achieved_rate_hz, 0)} Hz`);
   if (d.rtt_ms_median != null) parts.push(`RTT ${fmt(d.rtt_ms_median, 0)} ms`);
   if (d.retransmits) parts.push(`${d.retransmits} resent`);
+  const lim = d.camera_limits;
+  if (lim && lim.state === "set") parts.push("camera limits set");
+  else if (lim) parts.push(`camera limits ${lim.state}: host guard only`);
   return parts.join(" · ");
 }
 

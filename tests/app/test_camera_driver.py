@@ -72,6 +72,9 @@ def test_service_reports_the_camera_and_follows_pointing(tmp_path: Path, camera:
         d = s["driver"]
         assert d["kind"] == "visca" and d["url"] == f"visca+udp://127.0.0.1:{camera.port}"
         assert d["profile"] == "generic" and d["command_rate_hz"] == 25.0
+        # the guard lines are the camera's own limits too (inside the ±90°/±45° soft limits)
+        assert d["camera_limits"]["state"] == "set" and d["camera_limits"]["guard"] == "camera and host"
+        assert -90.0 < d["camera_limits"]["pan_deg"][0] < d["camera_limits"]["pan_deg"][1] < 90.0
 
         r = client.put(f"{API}/pointing", headers=h, json={"pan_deg": 25.0, "tilt_deg": -8.0})
         assert r.status_code == 200, r.text

@@ -11,7 +11,9 @@ error" (90 60 01 FF). Loss drops each datagram in each direction with probabilit
 latency delays the handling of each request by half of ``latency_s`` and each answer by the
 other half (so a round trip takes ``latency_s`` more). ``drop`` (a test hook) is asked about every
 UDP datagram, ``drop(direction, sequence, payload)`` with direction "in" or "out", and drops it
-when true, so a test can lose exactly one chosen message.
+when true, so a test can lose exactly one chosen message. The twin honours Pan-tiltLimitSet and
+LimitClear (:mod:`tracker.drivers.camera_responder`); ``limit_commands=False`` (``--no-limits``)
+emulates a camera that answers them with a syntax error.
 """
 
 from __future__ import annotations
@@ -67,6 +69,7 @@ class CameraEmulator:
         seed: int | None = None,
         tick_s: float = 0.005,
         twin: CameraTwin | None = None,
+        limit_commands: bool = True,
     ) -> None:
         if not 0.0 <= loss < 1.0:
             raise ConfigError(f"camera emulator: loss {loss!r} must be in [0, 1)")
@@ -76,7 +79,7 @@ class CameraEmulator:
             raise ConfigError(f"camera emulator: transport {transport!r} is not udp or tcp")
         self.profile = get_profile(profile) if isinstance(profile, str) else profile
         self.twin = twin or CameraTwin(self.profile)
-        self.responder = CameraResponder(self.twin)
+        self.responder = CameraResponder(self.twin, limit_commands=limit_commands)
         self.host, self.port, self.transport = host, port, transport
         self.loss, self.latency_s, self.tick_s = float(loss), float(latency_s), float(tick_s)
         self.stats = EmulatorStats()

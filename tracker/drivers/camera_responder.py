@@ -5,7 +5,10 @@ Network-free and clock-free: :class:`tracker.drivers.camera_emulator.CameraEmula
 packets and steps the twin. Malformed or unknown packets get the VISCA error replies a camera
 sends (syntax error 90 60 02 FF, message length 90 60 01 FF); a move when both sockets are
 busy gets "command buffer full" (90 60 03 FF); a move that another move replaces gets
-"command cancelled" (90 6y 04 FF) on its own socket.
+"command cancelled" (90 6y 04 FF) on its own socket. Pan-tiltLimitSet / LimitClear set the
+twin's own limits (a value outside the mechanical range is a syntax error, limits that leave
+no range are not executable); with ``limit_commands=False`` the camera does not know them
+(syntax error), as a model without the command.
 """
 
 from __future__ import annotations
@@ -47,8 +50,9 @@ class _Syntax(Exception):
 class CameraResponder:
     """Packets in, replies out (see the module docstring)."""
 
-    def __init__(self, twin: CameraTwin) -> None:
+    def __init__(self, twin: CameraTwin, *, limit_commands: bool = True) -> None:
         self.twin = twin
+        self.limit_commands = limit_commands
         self.jobs: dict[int, Job] = {}
         self.stats = ResponderStats()
 
@@ -126,6 +130,8 @@ class CameraResponder:
             else:
                 pan_rad, tilt_rad = pan * q, tilt * q
             self._start("pt", tag, send, lambda: twin.move_to(pan_rad, tilt_rad, pan_code, tilt_code))
+        elif (cat, cmd) == (0x06, 0x07) and len(args) == 10 and self.limit_commands:
+            self._limit(args, tag, send)
         elif (cat, cmd) == (0x06, 0x04) and not args:
             self._start("pt", tag, send, lambda: twin.move_to(0.0, 0.0, 0x18, 0x14))
         elif (cat, cmd) == (0x04, 0x3F) and len(args) == 2 and args[0] in (0x01, 0x02):
@@ -167,6 +173,24 @@ class CameraResponder:
             self._immediate(tag, send)
         else:
             raise _Syntax
+
+    def _limit(self, args: bytes, tag: object, send: Callable[[object, bytes], None]) -> None:
+        action, corner = args[0], args[1]
+        if action not in (0x00, 0x01) or corner not in (vp.LIMIT_DOWN_LEFT, vp.LIMIT_UP_RIGHT):
+            raise _Syntax
+        pan, tilt = vp.decode_nibbles(args[2:6]), vp.decode_nibbles(args[6:10])
+        if action == 0x01:  # LimitClear: both fields 7FFF
+            if (pan, tilt) != (vp.LIMIT_CLEAR_FIELD, vp.LIMIT_CLEAR_FIELD):
+                raise _Syntax
+            done = self.twin.set_limit(corner == vp.LIMIT_UP_RIGHT, None, None)
+        else:
+            q = self.twin.profile.rad_per_count
+            done = self.twin.set_limit(corner == vp.LIMIT_UP_RIGHT, pan * q, tilt * q)
+        if not done:
+            self.stats.errors += 1
+            send(tag, vp.error(0, vp.ERR_NOT_EXECUTABLE))
+            return
+        self._immediate(tag, send)
 
     def _immediate(self, tag: object, send: Callable[[object, bytes], None]) -> None:
         socket = next((s for s in SOCKETS if s not in self.jobs), SOCKETS[0])

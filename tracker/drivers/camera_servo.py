@@ -14,6 +14,12 @@ without the first cap a 30° step overshot by 15°, and braking at the full a ra
 limit on the emulator. The speed is then
 rounded *down* to the speed table (never faster than asked), at least code 1 outside the
 dead band when the limit allows it.
+
+All of that relies on the host's next commands arriving. :func:`handoff_room_rad` is where
+the driver stops relying on them: within that distance of a limit (the stopping distance at
+the planned deceleration, plus the dead time and two more late periods, plus the dead band)
+it hands the rest of the drive to the camera's own position loop (an absolute move to the
+limit or the target), which stops there by itself.
 """
 
 from __future__ import annotations
@@ -50,6 +56,21 @@ def limit_speed_rad_s(room_rad: float, accel_rad_s2: float, dead_time_s: float) 
         return 0.0
     t = dead_time_s
     return accel_rad_s2 * (-t + math.sqrt(t * t + 2.0 * room_rad / accel_rad_s2))
+
+
+HANDOFF_LATE_PERIODS = 2  # command periods the hand-off allows for, beyond latency + one period
+
+
+def handoff_room_rad(profile: CameraProfile, axis: str, speed_rad_s: float, *,
+                     period_s: float, latency_s: float) -> float:
+    """How close to a limit (rad) a drive at ``speed_rad_s`` is handed to the camera's position
+    loop: ``v²/(2·a') + v·(latency + (1 + HANDOFF_LATE_PERIODS)·period) + dead band``, a' the
+    planned deceleration (one late period more than :func:`axis_drive` leaves room for, so the
+    hand-off comes before the speed law starts braking)."""
+    v = abs(speed_rad_s)
+    brake = BRAKE_FRACTION * profile.accel_rad_s2
+    dead_time = latency_s + (1 + HANDOFF_LATE_PERIODS) * period_s
+    return v * v / (2.0 * brake) + v * dead_time + dead_band_rad(profile, axis, period_s)
 
 
 def axis_drive(

@@ -10,6 +10,14 @@ Per axis, each step (explicit, dt ≤ 10 ms): the commanded speed v* is the driv
 (the fastest speed that can still stop at the target); the speed follows v* at most ``a·dt``
 per step; the motor angle integrates it and stops at the mechanical range. The load follows
 the motor through a dead band of ``backlash`` (it lags by up to the play after a reversal).
+
+Pan-tilt limits (VISCA Pan-tiltLimitSet, :meth:`CameraTwin.set_limit`) narrow the range the way
+a camera's own limits do: a position move's target is clamped to them, and a drive toward one
+is slowed to the fastest speed that still stops there at the head's own acceleration
+(``sqrt(2·a·room)``, less a step's reaction), so the head comes to rest on the limit whether
+or not another command arrives.
+A head that cannot stop in time (a limit set just ahead of it at speed) passes it and brakes;
+a head outside its limits may move back in, never further out.
 """
 
 from __future__ import annotations
@@ -18,8 +26,10 @@ import math
 from dataclasses import dataclass, field
 
 from tracker.drivers.camera_profiles import CameraProfile
+from tracker.errors import DataError
 
 AXES = ("pan", "tilt")
+
 # A position move is done when within this many counts of its target and slow.
 ARRIVAL_COUNTS = 0.5
 
@@ -39,13 +49,39 @@ class AxisTwin:
     drive_rad_s: float = 0.0
     target_rad: float = 0.0
     max_rad_s: float = 0.0
+    limit_lo_rad: float | None = None  # the camera's own pan-tilt limits (None: none set)
+    limit_hi_rad: float | None = None
+
+    def bounds(self) -> tuple[float, float]:
+        """Where the head may go: the mechanical range within the pan-tilt limits."""
+        lo = self.lo_rad if self.limit_lo_rad is None else max(self.lo_rad, self.limit_lo_rad)
+        hi = self.hi_rad if self.limit_hi_rad is None else min(self.hi_rad, self.limit_hi_rad)
+        return lo, hi
+
+    def stop_speed_rad_s(self, room_rad: float, dt_s: float) -> float:
+        """The fastest speed from which the head, stepping ``dt_s`` at a time, still stops
+        within ``room_rad``: ``v·1.5·dt + v²/(2a) = room`` (one step to react, half a step of
+        the discrete braking), 0 without room (inf with infinite room)."""
+        if room_rad <= 0.0:
+            return 0.0
+        if math.isinf(room_rad):
+            return math.inf
+        a, t = self.accel_rad_s2, 1.5 * dt_s
+        return a * (-t + math.sqrt(t * t + 2.0 * room_rad / a))
 
     def step(self, dt_s: float, arrival_rad: float) -> bool:
         """Advance ``dt_s``; True when a position move arrived during this step."""
         arrived = False
+        lo, hi = self.bounds()
+        # Only the pan-tilt limits brake a drive; the mechanical range stops it dead, as before.
+        set_lo = -math.inf if self.limit_lo_rad is None else lo
+        set_hi = math.inf if self.limit_hi_rad is None else hi
         if self.mode == "drive":
             want = self.drive_rad_s
+            room = set_hi - self.motor_rad if want > 0 else self.motor_rad - set_lo
+            want = math.copysign(min(abs(want), self.stop_speed_rad_s(room, dt_s)), want)
         elif self.mode == "position":
+            self.target_rad = min(max(self.target_rad, lo), hi)
             e = self.target_rad - self.motor_rad
             want = math.copysign(min(self.max_rad_s, math.sqrt(2.0 * self.accel_rad_s2 * abs(e))), e)
             if abs(e) <= max(arrival_rad, abs(self.speed_rad_s) * dt_s):
@@ -54,8 +90,16 @@ class AxisTwin:
         else:
             want = 0.0
         dv = self.accel_rad_s2 * dt_s
+        before = self.motor_rad
         self.speed_rad_s += min(max(want - self.speed_rad_s, -dv), dv)
         self.motor_rad += self.speed_rad_s * dt_s
+        for limit, side in ((set_hi, 1.0), (set_lo, -1.0)):
+            # The camera's loop arrives on a limit it was braking for (within one step's speed
+            # change of the stopping profile); faster than that it passes and brakes beyond.
+            room = side * (limit - before)
+            crossed = side * (self.motor_rad - limit) > 0.0 and room >= 0.0
+            if crossed and abs(self.speed_rad_s) <= self.stop_speed_rad_s(room, dt_s) + 2.0 * dv:
+                self.motor_rad, self.speed_rad_s = limit, 0.0
         if not self.lo_rad <= self.motor_rad <= self.hi_rad:
             self.motor_rad = min(max(self.motor_rad, self.lo_rad), self.hi_rad)
             self.speed_rad_s = 0.0
@@ -96,12 +140,35 @@ class CameraTwin:
                 ax.mode, ax.drive_rad_s = "drive", speed if direction == positive else -speed
 
     def move_to(self, pan_rad: float, tilt_rad: float, pan_code: int, tilt_code: int) -> None:
-        """AbsolutePosition (targets clamped to the mechanical range)."""
+        """AbsolutePosition (targets clamped to the mechanical range and the pan-tilt limits)."""
         for axis, target, code in (("pan", pan_rad, pan_code), ("tilt", tilt_rad, tilt_code)):
             ax = self.axes[axis]
             ax.mode = "position"
-            ax.target_rad = min(max(target, ax.lo_rad), ax.hi_rad)
+            lo, hi = ax.bounds()
+            ax.target_rad = min(max(target, lo), hi)
             ax.max_rad_s = self.profile.code_speed_rad_s(axis, code)
+
+    def set_limit(self, up_right: bool, pan_rad: float | None, tilt_rad: float | None) -> bool:
+        """Pan-tiltLimitSet (a position) or LimitClear (None) of one corner: UpRight sets the
+        upper pan and tilt limits, DownLeft the lower ones. DataError when a limit lies outside
+        the mechanical range; False (nothing set) when it would leave no range with the other
+        corner's."""
+        for axis, value in (("pan", pan_rad), ("tilt", tilt_rad)):
+            ax = self.axes[axis]
+            if value is None:
+                continue
+            if not ax.lo_rad <= value <= ax.hi_rad:
+                raise DataError(f"{axis} limit {value:.4f} rad is outside the range "
+                                f"[{ax.lo_rad:.4f}, {ax.hi_rad:.4f}]")
+            other = ax.limit_lo_rad if up_right else ax.limit_hi_rad
+            if other is not None and (value <= other if up_right else value >= other):
+                return False
+        for axis, value in (("pan", pan_rad), ("tilt", tilt_rad)):
+            if up_right:
+                self.axes[axis].limit_hi_rad = value
+            else:
+                self.axes[axis].limit_lo_rad = value
+        return True
 
     def stop(self) -> None:
         """Stop both axes (decelerating)."""

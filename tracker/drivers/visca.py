@@ -9,8 +9,10 @@ target, send one steering command: a Pan-tiltDrive from :mod:`tracker.drivers.ca
 (a lost one is superseded by the next); a stop is repeated for a few cycles.
 
 No answer for ``link_lost_s`` latches the fault "link lost" (the console shows it), disables
-the driver and reconnects with back-off (0.25 s doubling to 5 s). After any (re)connection the
-targets are forgotten: the camera does not move until enabled again and given a target.
+the driver and reconnects with back-off (0.25 s doubling to 5 s); a reconnection first stops
+the head (a speed drive sent before the loss would otherwise run on to the limits). After any
+(re)connection the targets are forgotten: the camera does not move until enabled again and
+given a target.
 
 :meth:`ViscaCamera.take_over` lends the camera to a job that drives it itself (the console's
 speed-table identification): until :meth:`ViscaCamera.hand_back` the supervisor sends no
@@ -26,12 +28,27 @@ The one-shot commands (absolute and relative moves, home, presets, zoom, inquiri
 awaitable, sent with retransmission, and refuse to move the camera while disabled. Soft
 limits (the engine's, within the camera's own range) clamp every absolute target, and speed
 drives stop at them.
+
+The soft limits are also the camera's own: on every (re)connection, and whenever
+:meth:`ViscaCamera.set_limits` changes them, the driver sends Pan-tiltLimitSet for both
+corners (rounded inward to whole counts; it replaces limits set on the camera by other means,
+and a driver built without soft limits leaves them alone), so the camera's own loop stops the
+head at them whatever the host does next: a command period late, a stalled process, a dead
+one. A camera that answers with an error keeps running without them;
+``describe()["camera_limits"]`` then says "refused" (and the log warns): the host is the only
+guard (the speed law, and the hand-off below). Toward a limit, the last stretch of a speed
+drive is handed to the camera's position loop too: once the head is within its stopping
+distance (plus the latency and three command periods) of the limit, the driver sends an
+AbsolutePosition to the limit (a rate drive) or to the target (clamped) at the drive's speed
+instead of another Pan-tiltDrive, so the camera stops there by itself even without limits of
+its own.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
 import time
 from collections.abc import Coroutine, Mapping
@@ -39,11 +56,11 @@ from typing import Any, TypeVar
 
 from tracker.drivers import visca_protocol as vp
 from tracker.drivers.camera_profiles import CameraProfile
-from tracker.drivers.camera_servo import STOP, AxisDrive, axis_drive, dead_band_rad
+from tracker.drivers.camera_servo import STOP, AxisDrive, axis_drive, dead_band_rad, handoff_room_rad
 from tracker.drivers.loop_thread import LoopThread
 from tracker.drivers.motor import AXES, FaultLatch
 from tracker.drivers.spec import DriverSpec
-from tracker.drivers.visca_link import ViscaLink, open_link
+from tracker.drivers.visca_link import ViscaError, ViscaLink, open_link
 from tracker.errors import ConfigError, DriverFault
 
 BACKOFF_START_S = 0.25
@@ -51,6 +68,7 @@ BACKOFF_MAX_S = 5.0
 STOP_REPEATS = 3
 RATE_WINDOW = 25  # command cycles over which the achieved rate is measured
 T = TypeVar("T")
+log = logging.getLogger(__name__)
 
 
 class ViscaCamera(FaultLatch):
@@ -80,14 +98,17 @@ class ViscaCamera(FaultLatch):
         self._period = 1.0 / rate_hz
         self._timeout, self._retries, self._link_lost_s = timeout_s, retries, link_lost_s
         self._link = link or open_link(spec.transport, spec.host, spec.port)
-        self._limits: dict[str, tuple[float, float]] = {}
-        for axis in AXES:
-            lo, hi = profile.range_rad[axis]
-            if limits_rad is not None and axis in limits_rad:
-                lo, hi = max(lo, limits_rad[axis][0]), min(hi, limits_rad[axis][1])
-            if not lo < hi:
-                raise ConfigError(f"camera {axis} limits leave no range: [{lo:g}, {hi:g}] rad")
-            self._limits[axis] = (lo, hi)
+        self._limits = self._checked_limits(limits_rad)
+        # The camera's own limits: "not programmed" (not connected yet), "programming", "set",
+        # "refused" (an error reply: the host-side law is the only guard) or "failed" (no answer;
+        # tried again next cycle). ``_limits_dirty``: the soft limits changed since programmed.
+        self._owns_limits = limits_rad is not None  # without soft limits, leave the camera's alone
+        self._camera_limits = "not programmed"
+        self._camera_limits_error: str | None = None
+        self._camera_limits_counts: dict[str, tuple[int, int]] = {}
+        self._limits_dirty = False
+        self._programming = False
+        self._handoff: dict[str, tuple[int, float] | None] = {a: None for a in AXES}  # (direction, end)
         self._enabled = False
         self._faults: list[str] = []
         self._state = "stopped"
@@ -146,6 +167,45 @@ class ViscaCamera(FaultLatch):
     def limits(self, axis: str) -> tuple[float, float]:
         """The limits the driver enforces on ``axis`` (rad, console frame)."""
         return self._limits[self._check_axis(axis)]
+
+    def set_limits(self, limits_rad: Mapping[str, tuple[float, float]]) -> None:
+        """New soft limits (rad, console frame; clipped to the camera's range): targets are
+        clamped to them at once and the camera's own limits are programmed again on the next
+        command cycle. ConfigError when an axis would be left no range."""
+        limits = self._checked_limits({**self._limits, **limits_rad})
+        self._limits = limits
+        for axis in AXES:
+            target = self._target[axis]
+            if target is not None:
+                self._target[axis] = min(max(target, limits[axis][0]), limits[axis][1])
+        self._owns_limits = self._limits_dirty = True
+
+    def camera_limit_counts(self) -> dict[str, tuple[int, int]]:
+        """What Pan-tiltLimitSet sends for the soft limits: per corner ("up_right",
+        "down_left"), (pan, tilt) in VISCA counts, rounded inward (never outside the limits)."""
+        bounds = {}
+        for axis in AXES:
+            lo, hi = (self.profile.sign[axis] * v / self.profile.rad_per_count for v in self._limits[axis])
+            lo, hi = min(lo, hi), max(lo, hi)  # VISCA frame, counts (not yet whole)
+            bounds[axis] = (math.ceil(lo), math.floor(hi))
+        return {"down_left": (bounds["pan"][0], bounds["tilt"][0]),
+                "up_right": (bounds["pan"][1], bounds["tilt"][1])}
+
+    def _checked_limits(
+        self, limits_rad: Mapping[str, tuple[float, float]] | None
+    ) -> dict[str, tuple[float, float]]:
+        limits = {}
+        for axis in AXES:
+            lo, hi = self.profile.range_rad[axis]
+            if limits_rad is not None and axis in limits_rad:
+                want_lo, want_hi = limits_rad[axis]
+                if not (math.isfinite(want_lo) and math.isfinite(want_hi)):
+                    raise ConfigError(f"camera {axis} limits [{want_lo!r}, {want_hi!r}] rad are not finite")
+                lo, hi = max(lo, want_lo), min(hi, want_hi)
+            if not hi - lo > 2 * self.profile.rad_per_count:
+                raise ConfigError(f"camera {axis} limits leave no range: [{lo:g}, {hi:g}] rad")
+            limits[axis] = (lo, hi)
+        return limits
 
     def enable(self) -> None:
         self.refuse_if_faulted()
@@ -276,7 +336,24 @@ class ViscaCamera(FaultLatch):
             "connects": self.connects,
             "held_by": self._held_by,
             "last_error": self._last_error,
+            "camera_limits": self._camera_limits_status(),
         }
+
+    def _camera_limits_status(self) -> dict[str, Any]:
+        """The camera's own limits: state, what guards the soft limits, and (once set) the
+        limits programmed, in degrees of the console's frame."""
+        out: dict[str, Any] = {
+            "state": self._camera_limits,
+            "guard": "camera and host" if self._camera_limits == "set" else "host only",
+            "error": self._camera_limits_error,
+        }
+        counts = self._camera_limits_counts if self._camera_limits == "set" else {}
+        if counts:
+            for i, axis in enumerate(AXES):
+                ends = sorted(math.degrees(self.profile.to_rad(axis, counts[c][i]))
+                              for c in ("down_left", "up_right"))
+                out[f"{axis}_deg"] = [round(v, 4) for v in ends]
+        return out
 
     # -- one-shot commands ----------------------------------------------------------------------
     async def command(self, packet: bytes, *, completion: bool = False, timeout_s: float = 30.0) -> vp.Reply:
@@ -313,7 +390,7 @@ class ViscaCamera(FaultLatch):
         self._forget_targets()
         packet = vp.pan_tilt_position(
             len(self.profile.speeds_rad_s["pan"]), len(self.profile.speeds_rad_s["tilt"]),
-            self.profile.to_counts("pan", pan_rad), self.profile.to_counts("tilt", tilt_rad))
+            self._counts_inside("pan", pan_rad), self._counts_inside("tilt", tilt_rad))
         await self.command(packet, completion=wait, timeout_s=timeout_s)
         return pan_rad, tilt_rad
 
@@ -375,6 +452,20 @@ class ViscaCamera(FaultLatch):
                 await asyncio.sleep(backoff)
                 backoff = min(2 * backoff, BACKOFF_MAX_S)
                 continue
+            try:
+                if self._owns_limits:
+                    await self._program_limits()  # before any motion: every (re)connection
+                if self.connects > 0:
+                    # The link was lost: a speed drive sent before may still be running (the stop
+                    # the disable queued died with the link), so stop the head first.
+                    await self._link.request(vp.pan_tilt_stop(), timeout_s=self._timeout,
+                                             retries=self._retries)
+            except DriverFault as exc:  # no answer: the link is not usable yet
+                self._last_error = str(exc)
+                await self._link.close()
+                await asyncio.sleep(backoff)
+                backoff = min(2 * backoff, BACKOFF_MAX_S)
+                continue
             backoff = BACKOFF_START_S
             self.connects += 1
             self._forget_targets()  # never move on its own after a (re)connection
@@ -403,6 +494,8 @@ class ViscaCamera(FaultLatch):
                 self.missed_periods += max(0, int((now - previous) / self._period + 1e-6) - 1)
             previous = now
             self._cycle_times = [*self._cycle_times[-RATE_WINDOW:], now]
+            if (self._limits_dirty or self._camera_limits == "failed") and not self._programming:
+                self._spawn(self._program_limits(quiet=True))
             self._spawn(self._poll_position())
             self._spawn(self._steer())
             next_t += self._period
@@ -410,6 +503,47 @@ class ViscaCamera(FaultLatch):
             if delay < -self._period:  # fell behind: drop cycles rather than burst
                 next_t, delay = loop.time(), 0.0
             await asyncio.sleep(max(0.0, delay))
+
+    async def _program_limits(self, *, quiet: bool = False) -> None:
+        """Send Pan-tiltLimitSet for both corners (see the module docstring). An error reply
+        leaves the camera without them ("refused"); no answer raises LinkTimeout, or with
+        ``quiet`` marks them "failed" (tried again next cycle)."""
+        self._programming, self._limits_dirty = True, False
+        self._camera_limits = "programming"
+        counts = self.camera_limit_counts()
+        packets = [vp.pan_tilt_limit_set(vp.LIMIT_DOWN_LEFT, *counts["down_left"]),
+                   vp.pan_tilt_limit_set(vp.LIMIT_UP_RIGHT, *counts["up_right"])]
+        try:
+            try:
+                for packet in packets:
+                    await self._link.request(packet, completion=True, timeout_s=self._timeout,
+                                             retries=self._retries, completion_timeout_s=2.0)
+            except ViscaError as exc:
+                if exc.code != vp.ERR_NOT_EXECUTABLE:
+                    raise
+                # New limits that cross the old ones (an upper corner below the old lower one)
+                # are not executable one corner at a time: clear both, then set both.
+                for corner in (vp.LIMIT_DOWN_LEFT, vp.LIMIT_UP_RIGHT):
+                    await self._link.request(vp.pan_tilt_limit_clear(corner), completion=True,
+                                             timeout_s=self._timeout, retries=self._retries,
+                                             completion_timeout_s=2.0)
+                for packet in packets:
+                    await self._link.request(packet, completion=True, timeout_s=self._timeout,
+                                             retries=self._retries, completion_timeout_s=2.0)
+        except ViscaError as exc:
+            self._camera_limits, self._camera_limits_error = "refused", str(exc)
+            log.warning("camera %s refused its pan-tilt limits (%s): the host (speed law and "
+                        "hand-off) is the only guard of the soft limits", self.spec.url, exc)
+        except DriverFault as exc:
+            self._camera_limits, self._camera_limits_error = "failed", str(exc)
+            if not quiet:
+                raise
+        else:
+            self._camera_limits, self._camera_limits_error = "set", None
+            self._camera_limits_counts = counts
+            log.info("camera %s: pan-tilt limits set to %s", self.spec.url, counts)
+        finally:
+            self._programming = False
 
     def _spawn(self, coro: Any) -> None:
         task = asyncio.get_running_loop().create_task(coro)
@@ -478,6 +612,10 @@ class ViscaCamera(FaultLatch):
             self._drive[axis] = axis_drive(
                 self.profile, axis, position_rad=self.read_encoder(axis), target_rad=target,
                 rate_rad_s=rate, limits_rad=self._limits[axis], period_s=self._period, latency_s=latency)
+        handing_off, packet = self._handoff_packet(latency)
+        if handing_off:
+            self._stop_repeats = STOP_REPEATS
+            return packet
         pan, tilt = self._drive["pan"], self._drive["tilt"]
         moving = pan.direction != 0 or tilt.direction != 0
         if moving:
@@ -487,7 +625,78 @@ class ViscaCamera(FaultLatch):
         else:
             return None
         self._sent_drive = (pan, tilt)
+        self._sent_abs = None
         return self._drive_packet(pan, tilt)
+
+    def _handoff_packet(self, latency_s: float) -> tuple[bool, bytes | None]:
+        """The last stretch toward a limit for the camera's own position loop (see the module
+        docstring): (True, an AbsolutePosition or None when the same one went out already), or
+        (False, None) to keep steering by speed. A hand-off holds while the axis' drive keeps its
+        direction or stops; a reversal, or a rate or target forgotten, ends it. The other axis
+        goes to its target, to its limit ahead when driven by rate, or stops where it would."""
+        ends: dict[str, float] = {}
+        for axis in AXES:
+            drive, target, held = self._drive[axis], self._target[axis], self._handoff[axis]
+            forgotten = target is None and self._rate[axis] == 0.0
+            if held is not None and (drive.direction == -held[0] or forgotten):
+                held = None
+            direction = drive.direction or (held[0] if held is not None else 0)
+            if direction == 0:
+                continue
+            lo, hi = self._limits[axis]
+            limit = hi if direction > 0 else lo
+            if held is None:
+                speed = max(abs(drive.speed_rad_s), abs(self._speed[axis]))
+                room = min(direction * (limit - self.read_encoder(axis)),
+                           direction * (limit - self._position_ahead(axis)))
+                reach = handoff_room_rad(self.profile, axis, speed, period_s=self._period,
+                                         latency_s=latency_s)
+                if room > reach:
+                    continue
+            end = limit if target is None else target
+            held = (direction, end)
+            self._handoff[axis] = held
+            ends[axis] = end
+        for axis in AXES:
+            if axis not in ends:
+                self._handoff[axis] = None
+        if not ends:
+            return False, None
+        codes = {}
+        for axis in AXES:
+            drive = self._drive[axis]
+            if axis not in ends:
+                target = self._target[axis]
+                lo, hi = self._limits[axis]
+                speed = self._speed[axis]
+                stop_at = self.read_encoder(axis) + speed * abs(speed) / (2.0 * self.profile.accel_rad_s2)
+                ends[axis] = (target if target is not None
+                              else (hi if drive.direction > 0 else lo) if drive.direction != 0
+                              else min(max(stop_at, lo), hi))
+            codes[axis] = self._handoff_code(axis, drive)
+        end_pan, end_tilt = ends["pan"], ends["tilt"]
+        dead = {a: dead_band_rad(self.profile, a, self._period) for a in AXES}
+        if self._sent_abs is not None and abs(end_pan - self._sent_abs[0]) < dead["pan"] \
+                and abs(end_tilt - self._sent_abs[1]) < dead["tilt"]:
+            return True, None
+        self._sent_abs = (end_pan, end_tilt)
+        self._sent_drive = None
+        counts = self._counts_inside("pan", end_pan), self._counts_inside("tilt", end_tilt)
+        return True, vp.pan_tilt_position(codes["pan"], codes["tilt"], *counts)
+
+    def _position_ahead(self, axis: str) -> float:
+        """Where the head may be by now: the last reported angle advanced by the modelled speed
+        over the report's whole age (up to 1 s), not two periods as :meth:`read_encoder`; after
+        the host stalled, the head ran on at that speed (with the stall's missed cycles, the
+        hand-off then comes on the first cycle back instead of an RTT later)."""
+        age = min(time.monotonic() - self._position_t, 1.0) if self._have_position else 0.0
+        return self._position[axis] + self._speed[axis] * age
+
+    def _handoff_code(self, axis: str, drive: AxisDrive) -> int:
+        """The speed code of a handed-off move: the drive's, or the one the head still runs at."""
+        if drive.direction != 0:
+            return drive.code
+        return self.profile.speed_code(axis, abs(self._speed[axis]))
 
     def _drive_packet(self, pan: AxisDrive, tilt: AxisDrive) -> bytes:
         # console -> VISCA frame: VISCA pan positive is right (direction byte 2), tilt up (1).
@@ -507,14 +716,25 @@ class ViscaCamera(FaultLatch):
         self._sent_abs = (pan, tilt)
         return vp.pan_tilt_position(
             len(self.profile.speeds_rad_s["pan"]), len(self.profile.speeds_rad_s["tilt"]),
-            self.profile.to_counts("pan", pan), self.profile.to_counts("tilt", tilt))
+            self._counts_inside("pan", pan), self._counts_inside("tilt", tilt))
 
     # -- helpers ----------------------------------------------------------------------------
     def _forget_targets(self) -> None:
         for a in AXES:
             self._target[a], self._rate[a], self._ff[a] = None, 0.0, None
+            self._handoff[a] = None
         self._sent_abs = None
         self._stop_repeats = 0
+
+    def _counts_inside(self, axis: str, angle_rad: float) -> int:
+        """The VISCA counts of ``angle_rad`` (within the limits), moved one count inward when
+        rounding to the nearest would land past a limit."""
+        counts = self.profile.to_counts(axis, angle_rad)
+        lo, hi = self._limits[axis]
+        at = self.profile.to_rad(axis, counts)
+        if at > hi or at < lo:
+            counts -= self.profile.sign[axis] * (1 if at > hi else -1)
+        return counts
 
     def _check_motion(self) -> None:
         if not self._enabled:

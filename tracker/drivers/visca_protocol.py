@@ -10,7 +10,10 @@ Sources checked (public references, not guesses):
   Pan-tiltDrive ``81 01 06 01 VV WW 0p 0q FF`` (VV pan speed 0x01-0x18, WW tilt speed
   0x01-0x14; p: 1 left, 2 right, 3 stop; q: 1 up, 2 down, 3 stop), AbsolutePosition
   ``81 01 06 02 VV WW 0Y 0Y 0Y 0Y 0Z 0Z 0Z 0Z FF``, RelativePosition ``... 06 03 ...``, Home
-  ``81 01 06 04 FF``, CAM_Memory set/recall ``81 01 04 3F 01|02 pp FF`` (pp 0-127), CAM_Zoom
+  ``81 01 06 04 FF``, Pan-tiltLimitSet ``81 01 06 07 00 0W 0Y 0Y 0Y 0Y 0Z 0Z 0Z 0Z FF`` and
+  LimitClear ``81 01 06 07 01 0W 07 0F 0F 0F 07 0F 0F 0F FF`` (W: 1 UpRight, 0 DownLeft; the
+  Sony SRG-300H and SRG-X400 command lists, the HuddleCamHD VISCA list), CAM_Memory
+  set/recall ``81 01 04 3F 01|02 pp FF`` (pp 0-127), CAM_Zoom
   stop ``81 01 04 07 00 FF``, tele/wide variable ``2p``/``3p`` (p 0-7), direct
   ``81 01 04 47 0p 0q 0r 0s FF``; inquiries Pan-tiltPosInq ``81 09 06 12 FF`` ->
   ``90 50 0w 0w 0w 0w 0z 0z 0z 0z FF``, CAM_ZoomPosInq ``81 09 04 47 FF`` ->
@@ -76,6 +79,11 @@ PAN_LEFT, PAN_RIGHT, PAN_STOP = 0x01, 0x02, 0x03
 TILT_UP, TILT_DOWN, TILT_STOP = 0x01, 0x02, 0x03
 
 POWER_ON, POWER_STANDBY, POWER_ERROR = 0x02, 0x03, 0x04
+
+# Pan-tiltLimitSet corners: UpRight sets the upper pan (right) and tilt (up) limits, DownLeft
+# the lower ones; LimitClear's position fields are 7FFF (no limit).
+LIMIT_DOWN_LEFT, LIMIT_UP_RIGHT = 0x00, 0x01
+LIMIT_CLEAR_FIELD = 0x7FFF
 
 
 @dataclass(frozen=True, slots=True)
@@ -183,6 +191,28 @@ def pan_tilt_position(pan_speed: int, tilt_speed: int, pan: int, tilt: int, rela
 def pan_tilt_home() -> bytes:
     """Pan-tiltDrive Home."""
     return _packet(0x01, 0x06, 0x04)
+
+
+def _check_corner(corner: int) -> None:
+    if corner not in (LIMIT_DOWN_LEFT, LIMIT_UP_RIGHT):
+        raise DataError(f"pan-tilt limit corner {corner} is not 0 (DownLeft) or 1 (UpRight)")
+
+
+def pan_tilt_limit_set(corner: int, pan: int, tilt: int) -> bytes:
+    """Pan-tiltLimitSet: the ``corner``'s (LIMIT_UP_RIGHT / LIMIT_DOWN_LEFT) pan and tilt limits
+    in counts (signed 16-bit, VISCA frame)."""
+    _check_corner(corner)
+    for name, v in (("pan", pan), ("tilt", tilt)):
+        if not -0x8000 <= v <= 0x7FFF:
+            raise DataError(f"{name} limit {v} counts does not fit a signed 16-bit value")
+    return _packet(0x01, 0x06, 0x07, 0x00, corner, *encode_nibbles(pan), *encode_nibbles(tilt))
+
+
+def pan_tilt_limit_clear(corner: int) -> bytes:
+    """Pan-tiltLimitClear of the ``corner``'s limits."""
+    _check_corner(corner)
+    clear = encode_nibbles(LIMIT_CLEAR_FIELD)
+    return _packet(0x01, 0x06, 0x07, 0x01, corner, *clear, *clear)
 
 
 def _check_preset(number: int) -> None:

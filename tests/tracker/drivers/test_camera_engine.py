@@ -69,8 +69,9 @@ async def test_engine_holds_then_follows_pointing_and_jog_on_a_camera() -> None:
 def test_camera_emulator_command_serves_until_its_duration() -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "tracker", "camera-emulator", "--port", "0", "--profile", "ptzoptics",
-         "--loss", "0.1", "--latency-ms", "30", "--duration-s", "0.5"],
+         "--loss", "0.1", "--latency-ms", "30", "--duration-s", "1.2", "--no-limits"],
         capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     assert "camera emulator (ptzoptics) on visca+udp://127.0.0.1:" in proc.stdout
-    assert "loss 0.1, latency 30 ms" in proc.stdout
+    assert "loss 0.1, latency 30 ms, Pan-tiltLimitSet refused" in proc.stdout
+    assert "range pan -170.0..170.0° tilt -30.0..90.0°" in proc.stdout  # the status line, each second
