@@ -18,7 +18,11 @@ from tracker.plant.effects import compliance as compliance_effect
 from tracker.plant.effects import stiction as stiction_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.effect_search import screen_backlash
-from tracker.workbench.diagnose.evidence import EvidenceContext, ripple_not_repeating
+from tracker.workbench.diagnose.evidence import (
+    EvidenceContext,
+    ripple_not_repeating,
+    saturation_not_where_clipped,
+)
 from tracker.workbench.diagnose.kstep import (
     Comparison,
     HeldOutSearch,
@@ -683,8 +687,10 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     encoder is read); a delay of about one sample is the controller's own computational latency
     (the command logged at row i applied from row i + 1), a property of the log, not of the
     drive — reported apart (:func:`finding`). A clip level the command never reaches clips
-    nothing (its gain came from refitting the rest). A "belt" with a damping ratio of 1/√2 or
-    more has no resonance peak, and one at or above a quarter of the sampling rate or the
+    nothing (its gain came from refitting the rest), and one whose clipped samples carry no more
+    of the residual torque than their share of the time explains nothing a clip would
+    (:func:`tracker.plant.effects.saturation.not_where_clipped`). A "belt" with a damping ratio
+    of 1/√2 or more has no resonance peak, and one at or above a quarter of the sampling rate or the
     catalogue's bound cannot be resolved: both are the model's extra load state fitting noise.
     A ripple must be seen to repeat: fitted on one half of the angles the run covers, it must
     predict the other half (:func:`tracker.plant.effects.ripple.not_repeating`); else it is a
@@ -697,8 +703,9 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
         timing_s = encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s)
         return delay_s >= MIN_DRIVE_DELAY_SAMPLES * ctx.sig.dt_s and delay_s >= timing_s
     if effect == "saturation":
-        clipped = float(np.mean(np.abs(ctx.sig.u_v) > model.params["saturation.limit"]))
-        return clipped >= MIN_CLIPPED_SHARE
+        limit = model.params["saturation.limit"]
+        clipped = float(np.mean(np.abs(ctx.sig.u_v) > limit))
+        return clipped >= MIN_CLIPPED_SHARE and saturation_not_where_clipped(limit, ctx) is None
     if effect == "compliance":
         f_max = min(0.25 / ctx.sig.dt_s, 0.95 * get_param("compliance.frequency").upper)
         return (
