@@ -190,6 +190,8 @@ def describe(
                 f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {ba.static_excess_se:.2g} "
                 f"over Coulomb in {ba.count} creeping starts"
             )
+            one_sided = ba.one_sided()
+            extra += f" ({one_sided})" if one_sided else ""
         return (
             f"error concentrates at starts from rest ({100 * e:.0f} % of the prediction error in the "
             f"{100 * tfrac:.0f} % of windows that start at rest){extra}; break-away "

@@ -359,7 +359,7 @@ def stiction_at_rest(ctx: EvidenceContext) -> str | None:
     if ba is None or measured is None or ba.count <= MIN_BREAKAWAY_COUNT:
         return held
     excess, se = measured
-    if excess / se < MIN_BREAKAWAY_T:
+    if excess / se < MIN_BREAKAWAY_T or ba.one_sided() is not None:
         return held
     sliding = ba.static_excess_nm + ba.coulomb_nm - excess
     lower = excess - float(stats.t.ppf(0.975, ba.count - 2)) * se
