@@ -68,6 +68,7 @@ MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on ea
 # round): the same bar, on each half of the run, against the present structure refitted alike.
 MIN_HALF_GAIN_JOINT = MIN_HALF_GAIN_TWO_MASS
 JOINT_REFIT_EVALS = 30
+FRICTION = ("viscous", "coulomb")  # the base's friction, refitted with a torque effect by simulation
 BELT_FREQUENCIES_HZ = (3.0, 4.5, 6.5, 9.0, 12.0, 16.0, 22.0, 30.0, 42.0, 60.0)
 BELT_DAMPINGS = (0.05, 0.15, 0.4)
 EFFECT_PARAMS = {"gravity": 2, "ripple": 3, "stiction": 2, "compliance": 2}
@@ -324,6 +325,17 @@ def judge_candidate(
         significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_TWO_MASS and _kstep_ok(
             effect, cmp
         )
+    elif not present and not two_mass and screen_ok and not significant and effect in TORQUE_EFFECTS:
+        # The regression's values may sit on a rough inertia and friction (a coarse encoder's
+        # acceleration): refit the effect with the friction by simulation, on one half of the
+        # run, and judge it on the other against the base friction refitted alike.
+        held = _held_out_refit(judge, base_model, cand, cancel)
+        if min(held) >= MIN_HELD_OUT_GAIN:
+            names = [k for k in cand.free_param_names() if k.split(".")[0] in (effect, *FRICTION)]
+            cand, _ = refine(judge, cand, names, max_evals=JOINT_REFIT_EVALS, cancel=cancel)
+            score = judge.score(cand)
+            cmp = judge.compare(base_score, score)
+            significant = _kstep_ok(effect, cmp)
     elif present and screen_ok and not significant and effect in TORQUE_EFFECTS:
         joint, joint_score = _refit_jointly(judge, base_model, cand, cancel)
         joint_cmp = judge.compare(base_score, joint_score)
@@ -413,6 +425,28 @@ def _refit_jointly(
     names = [*base.free_param_names(), *(k for k in cand.free_param_names() if k not in base.params)]
     fitted, _ = refine(judge, cand, names, max_evals=JOINT_REFIT_EVALS, cancel=cancel)
     return fitted, judge.score(fitted)
+
+
+def _held_out_refit(
+    judge: KStepJudge, base: AxisModel, cand: AxisModel, cancel: Callable[[], bool] | None
+) -> tuple[float, float]:
+    """How much better ``cand`` predicts than ``base`` on held-out halves of the run, both with
+    their friction (and ``cand`` its new effect) refitted by simulation on the other half.
+
+    Returns the share of the base's held-out k-step error removed, per half.
+    """
+    half = judge.halves()
+    gains = []
+    for h in (0, 1):
+        fit_on, judge_on = judge.subset(half == h), judge.subset(half != h)
+        sse = []
+        for m in (base, cand):
+            new = [k for k in m.free_param_names() if k not in base.params]
+            names = [k for k in m.free_param_names() if k.split(".")[0] in FRICTION] + new
+            fitted, _ = refine(fit_on, m, names, max_evals=JOINT_REFIT_EVALS, cancel=cancel)
+            sse.append(judge_on.score(fitted).sse)
+        gains.append(1.0 - sse[1] / sse[0] if sse[0] > 0 else 0.0)
+    return gains[0], gains[1]
 
 
 def refine_leaders(
