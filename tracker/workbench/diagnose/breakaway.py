@@ -21,7 +21,7 @@ command above Coulomb gave no excess at all.)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +40,11 @@ MAX_JUMP_V = 0.3  # ... and must not have jumped by more than this over the last
 MAX_TRAVEL_SWING = 1.0
 TRAVEL_ITERATIONS = 2  # the travel after the break measured again with the break-away found
 TRAVEL_STRIBECK_RAD_S = 0.05  # Stribeck velocity of that second model (the catalogue's default)
+# Starts each way needed, and the t of the difference of their mean excesses beyond which the
+# break-away is not symmetric (static friction opposes either way alike; a missing torque of
+# position or a bias adds to one direction's break-away what it takes from the other's).
+MIN_STARTS_EACH_WAY = 3
+MAX_DIRECTION_T = 3.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,6 +65,29 @@ class BreakAway:
     delay_s: float
     delay_se: float
     coulomb_nm: float = 0.0
+    direction: FloatArray = field(default_factory=lambda: np.zeros(0))  # each start's way (+1, -1), (m,)
+
+    def direction_difference(self) -> tuple[float, float] | None:
+        """(mean excess of the starts in the positive direction − that of the negative ones, its
+        standard error; N·m), or None with fewer than ``MIN_STARTS_EACH_WAY`` starts either way."""
+        parts = [self.excess_nm[self.direction == s] for s in (1.0, -1.0)]
+        if self.direction.size != self.excess_nm.size or min(p.size for p in parts) < MIN_STARTS_EACH_WAY:
+            return None
+        se = math.sqrt(sum(float(np.var(p, ddof=1)) / p.size for p in parts))
+        return float(parts[0].mean() - parts[1].mean()), se
+
+    def one_sided(self) -> str | None:
+        """Why the excess is not static friction's alone, or None: the starts of the two directions
+        break away at excesses that differ beyond ``MAX_DIRECTION_T`` standard errors (the axis is
+        held by a torque the model lacks, gravity or a bias, against one direction more)."""
+        diff = self.direction_difference()
+        if diff is None or not diff[1] > 0 or abs(diff[0]) <= MAX_DIRECTION_T * diff[1]:
+            return None
+        return (
+            f"the starts break away {1e3 * abs(diff[0]):.3g} ± {1e3 * diff[1]:.2g} mN·m later "
+            f"{'positive' if diff[0] > 0 else 'negative'} than the other way: a torque the model "
+            "lacks holds the axis one way, which static friction (the same both ways) does not"
+        )
 
     @property
     def static_t(self) -> float:
@@ -128,7 +156,7 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
     steps = np.abs(np.diff(th))
     steps = steps[steps > 0]
     count = float(np.min(steps)) if steps.size else 0.0
-    ex, rate = [], []
+    ex, rate, way = [], [], []
     for e, gap in zip(ends, rest_len, strict=True):
         if e - slope_n - pre0 < 0 or e + after >= th.size:
             continue
@@ -150,6 +178,7 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
             continue
         ex.append(held - fc_s)
         rate.append(k_gain * s * du)
+        way.append(s)
     if len(ex) < 4:
         return None
     y, r = np.array(ex), np.array(rate)
@@ -163,7 +192,7 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
     except np.linalg.LinAlgError:
         se = np.array([math.inf, math.inf])
     return BreakAway(
-        y.size, y, r, float(coef[0]), float(se[0]), float(coef[1]), float(se[1]), float(fc_pos)
+        y.size, y, r, float(coef[0]), float(se[0]), float(coef[1]), float(se[1]), float(fc_pos), np.array(way)
     )
 
 

@@ -12,6 +12,7 @@ from scipy import signal
 
 from tracker.plant.effects import CATALOGUE, Effect, generic_effects, get_effect, is_generic
 from tracker.plant.effects import ripple as ripple_effect
+from tracker.plant.effects import saturation as saturation_effect
 from tracker.plant.model import AxisModel
 from tracker.workbench.diagnose.breakaway import BreakAway
 from tracker.workbench.diagnose.kstep import Comparison
@@ -127,6 +128,12 @@ def ripple_not_repeating(cycles_per_rev: float, ctx: EvidenceContext) -> str | N
     return ripple_effect.not_repeating(sig.theta_rad[sig.use], ctx.base_reg.residual, cycles_per_rev)
 
 
+def saturation_not_where_clipped(limit_v: float, ctx: EvidenceContext) -> str | None:
+    """Why a clip at ``limit_v`` is no saturation, or None
+    (:func:`tracker.plant.effects.saturation.not_where_clipped` on the baseline's residual torque)."""
+    return saturation_effect.not_where_clipped(*ctx.concentration(np.abs(ctx.sig.u_v) > limit_v))
+
+
 def describe(
     effect: str, scr: Screen, cmp: Comparison, ctx: EvidenceContext, params: Mapping[str, float]
 ) -> str:
@@ -183,6 +190,8 @@ def describe(
                 f"; break-away from rest needs {_mnm(ba.static_excess_nm)} ± {ba.static_excess_se:.2g} "
                 f"over Coulomb in {ba.count} creeping starts"
             )
+            one_sided = ba.one_sided()
+            extra += f" ({one_sided})" if one_sided else ""
         return (
             f"error concentrates at starts from rest ({100 * e:.0f} % of the prediction error in the "
             f"{100 * tfrac:.0f} % of windows that start at rest){extra}; break-away "
@@ -217,9 +226,10 @@ def describe(
     if effect == "saturation":
         lim = p["saturation.limit"]
         e, tfrac = ctx.concentration(np.abs(sig.u_v) > lim)
+        why = saturation_not_where_clipped(lim, ctx)
         return (
             f"error appears when |u| > {lim:.2f} V ({100 * e:.0f} % of the residual torque in "
-            f"{100 * tfrac:.0f} % of the time)" + tail
+            f"{100 * tfrac:.0f} % of the time)" + (f"; {why}" if why else "") + tail
         )
     if effect == "backlash":
         rev = np.abs(sig.alpha_rad_s2) < 0.1 * float(np.std(sig.alpha_rad_s2))
