@@ -47,6 +47,12 @@ MIN_BACKLASH_GAIN = 0.15  # share of the residual torque beyond a count's flicke
 # over a short window) but not significantly: a t below minus this is a play that hurts the
 # prediction (true gaps of two independent sets: t >= -2.9; a clean log's false gap: -8).
 MAX_BACKLASH_KSTEP_WORSE_T = 4.0
+# ... nor by its size: the error's scatter hides a prediction that fails outright in a few
+# windows (a cascade hunting a count either way at each hold, read as a gap of hundreds of
+# counts whose motor swings through it: 11-57 times the error without). The load's unknown
+# place in a real gap costs a fraction of the error, not an order of magnitude (true gaps of
+# three independent generators: at most 4.7 times).
+MAX_BACKLASH_KSTEP_RATIO = 10.0
 MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no delay at all)
 # Below: one controller tick of computational latency, seen anywhere up to one more sample late
 # (when in the period the encoder is read, and the lag of friction's pre-sliding elasticity,
@@ -789,14 +795,16 @@ def _backlash_significant(scr: Screen, screens: Mapping[str, Screen], cmp: Compa
     (the encoder's flicker at reversals: see ``effect_search.screen_backlash``), more of the
     held-out torque than a belt would, and the simulation must not be made significantly worse
     by it (the k-step error's t no lower than ``-MAX_BACKLASH_KSTEP_WORSE_T``: a bar on the
-    error's own scatter, not on its size, which a short log's few windows make large either way).
+    error's own scatter, not on its size, which a short log's few windows make large either way),
+    nor made an order of magnitude worse (``MAX_BACKLASH_KSTEP_RATIO`` times the error without
+    it: an effect whose own prediction fails outright is no verdict, however it scatters).
     """
     other = screens.get("compliance")
     # Only a belt with a resonance competes (an overdamped one is the extra state fitting noise).
     resonant = other is not None and other.params.get("compliance.damping", 0.0) < MAX_RESONANT_DAMPING
     beats_belt = not resonant or other is None or scr.gain_cv > other.gain_cv
     beyond_flicker = scr.detail.get("beyond_flicker", 0.0) >= MIN_BACKLASH_GAIN
-    sane = cmp.t_stat > -MAX_BACKLASH_KSTEP_WORSE_T
+    sane = cmp.t_stat > -MAX_BACKLASH_KSTEP_WORSE_T and 1.0 - cmp.improvement < MAX_BACKLASH_KSTEP_RATIO
     explains = scr.gain_cv >= MIN_BACKLASH_GAIN and scr.p_value <= MAX_SCREEN_P
     return explains and beats_belt and beyond_flicker and sane
 
