@@ -16,8 +16,17 @@ from tracker.workbench.diagnose.screening import Screen
 
 def _screen(gain_cv: float = 0.4, beyond_flicker: float = 0.3) -> Screen:
     none: Any = None
-    return Screen("backlash", none, none, {"backlash.width": 0.01}, {}, gain_cv, 1e-8, True,
-                  {"beyond_flicker": beyond_flicker})
+    return Screen(
+        "backlash",
+        none,
+        none,
+        {"backlash.width": 0.01},
+        {},
+        gain_cv,
+        1e-8,
+        True,
+        {"beyond_flicker": beyond_flicker},
+    )
 
 
 def test_a_gap_that_worsens_the_prediction_within_its_scatter_stands() -> None:
