@@ -725,7 +725,9 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
 def negligible(effect: str, model: AxisModel, ctx: EvidenceContext | None = None) -> str | None:
     """Why the effect's fitted values are too small to be a missing effect (its file says), or None.
 
-    Stiction is also judged on its direct measurement when there is one: the break-away from
+    Stiction's fitted break-away is replaced by the level the start times from rest measure when
+    those reject it (:meth:`StartLags.rejects_level`). It is also judged on its direct measurement
+    when there is one: the break-away from
     rest (:mod:`tracker.workbench.diagnose.breakaway`), whose 95 % upper bound must exceed the
     Stribeck dip's share of Coulomb, whatever break-away the simulation fitted.
     """
@@ -733,7 +735,15 @@ def negligible(effect: str, model: AxisModel, ctx: EvidenceContext | None = None
         check = get_effect(effect).negligible
     except ConfigError:
         return None
-    why = check(model.params) if check is not None else None
+    params: Mapping[str, float] = model.params
+    lags = ctx.start_lags if ctx is not None and effect == "stiction" else None
+    if lags is not None and lags.rejects_level(float(params["stiction.static_torque"])):
+        # The starts from rest measure the break-away directly and reject the level the
+        # simulation fitted (a refit that trades the break-away against Coulomb, or fits the
+        # Karnopp stick to something else): judge the size the starts measured, over the
+        # Coulomb torque of sliding they were timed against.
+        params = {"coulomb.torque": lags.coulomb_nm, "stiction.static_torque": lags.level_nm}
+    why = check(params) if check is not None else None
     ba = ctx.breakaway if ctx is not None else None
     if why is None and effect == "stiction" and ba is not None and ba.count > MIN_BREAKAWAY_COUNT:
         upper = ba.static_excess_nm + float(stats.t.ppf(0.975, ba.count - 2)) * ba.static_excess_se
