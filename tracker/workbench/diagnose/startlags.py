@@ -112,15 +112,18 @@ class StartLags:
         """Whether the start times reject a break-away at ``level_nm`` (a level fitted some other
         way, by simulation): its χ² exceeds the best level's by more than ``MIN_CHI2`` on the
         log's own scatter. A level at or under Coulomb is the "neither" story; one above every
-        level tried is judged at the highest tried (the torque reached it on some start)."""
-        if not self.levels_nm:
+        level tried is judged at the highest tried (the torque reached it on some start). Starts
+        a constant lag explains significantly better than any level measure no break-away, and
+        reject none."""
+        scale = self._scale(self.chi2_level)
+        if not self.levels_nm or (self.chi2_level - self.chi2_delay) / scale > MIN_CHI2:
             return False
         if level_nm <= self.coulomb_nm:
             chi2 = self.chi2_none
         else:
             i = int(np.searchsorted(np.asarray(self.levels_nm), level_nm))
             chi2 = self.chi2_levels[min(i, len(self.chi2_levels) - 1)]
-        return (chi2 - self.chi2_level) / self._scale(self.chi2_level) > MIN_CHI2
+        return (chi2 - self.chi2_level) / scale > MIN_CHI2
 
     def describe(self) -> str:
         return (

@@ -78,5 +78,9 @@ def test_a_refit_level_the_starts_reject_is_replaced_by_the_measured_one() -> No
     ctx: object = SimpleNamespace(breakaway=None, start_lags=lags)
     assert negligible("stiction", model) is None
     assert negligible("stiction", model, ctx) is not None  # type: ignore[arg-type]
+    # Starts a constant lag explains far better (a drive delay: outside gen2 m2 stiction-000 and
+    # m3 delay-000) measure no level and reject no refit.
+    lagged = StartLags(13, 0.02, 1.0, 1.0, 60.0, 6.0, 60.0, 0.005, lags.levels_nm[:3], (60.0, 70.0, 200.0))
+    assert not lagged.rejects_level(1.2)
     # No levels tried (too few starts reached one): nothing to reject with.
     assert not StartLags(13, 0.0, 1.0, 1.0, 6.0, 6.0, 6.0, 0.005).rejects_level(1.6)
