@@ -62,6 +62,8 @@ MIN_DRIVE_DELAY_SAMPLES = 2.0
 MIN_SLIDING_WINDOWS = 20  # windows of steady sliding needed to tell a delay from pre-sliding lag
 MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-order system peaks below
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
+# A command within this share of the log's largest |u| is held at the controller's own clamp.
+CLAMP_TOLERANCE = 1e-6
 # Clip levels tried by simulation, named by the share of the run's samples each clips.
 CLIPPED_SHARES = (0.003, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.25)
 OVERWHELMING_P = 1e-10
@@ -697,7 +699,11 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
     encoder is read); a delay of about one sample is the controller's own computational latency
     (the command logged at row i applied from row i + 1), a property of the log, not of the
     drive — reported apart (:func:`finding`). A clip level the command never reaches clips
-    nothing (its gain came from refitting the rest). A "belt" with a damping ratio of 1/√2 or
+    nothing (its gain came from refitting the rest); nor does one the command passes only where
+    the controller held it at its own clamp (the log's largest |u|, the same value sample after
+    sample): there the command does not grow, so nothing shows the torque stop growing with it,
+    and any lag of the largest steps (an armature's L/R) reads as a clip just under the clamp. A
+    "belt" with a damping ratio of 1/√2 or
     more has no resonance peak, and one at or above a quarter of the sampling rate or the
     catalogue's bound cannot be resolved: both are the model's extra load state fitting noise.
     A ripple must be seen to repeat: fitted on one half of the angles the run covers, it must
@@ -711,7 +717,9 @@ def _physical(effect: str, model: AxisModel, ctx: EvidenceContext) -> bool:
         timing_s = encoder_timing_s(ctx.sig.theta_raw_rad, ctx.sig.dt_s)
         return delay_s >= MIN_DRIVE_DELAY_SAMPLES * ctx.sig.dt_s and delay_s >= timing_s
     if effect == "saturation":
-        clipped = float(np.mean(np.abs(ctx.sig.u_v) > model.params["saturation.limit"]))
+        u = np.abs(ctx.sig.u_v)
+        clamped = u >= (1.0 - CLAMP_TOLERANCE) * float(u.max()) if u.size else u > 0.0
+        clipped = float(np.mean((u > model.params["saturation.limit"]) & ~clamped))
         return clipped >= MIN_CLIPPED_SHARE
     if effect == "compliance":
         f_max = min(0.25 / ctx.sig.dt_s, 0.95 * get_param("compliance.frequency").upper)
