@@ -115,9 +115,12 @@ class StartLags:
         level tried is judged at the highest tried (the torque reached it on some start). Starts
         a constant lag explains significantly better than any level measure no break-away, and
         reject none."""
-        scale = self._scale(self.chi2_level)
-        if not self.levels_nm or (self.chi2_level - self.chi2_delay) / scale > MIN_CHI2:
+        if (
+            not self.levels_nm
+            or (self.chi2_level - self.chi2_delay) / self._scale(self.chi2_delay) > MIN_CHI2
+        ):
             return False
+        scale = self._scale(self.chi2_level)
         if level_nm <= self.coulomb_nm:
             chi2 = self.chi2_none
         else:

@@ -82,5 +82,11 @@ def test_a_refit_level_the_starts_reject_is_replaced_by_the_measured_one() -> No
     # m3 delay-000) measure no level and reject no refit.
     lagged = StartLags(13, 0.02, 1.0, 1.0, 60.0, 6.0, 60.0, 0.005, lags.levels_nm[:3], (60.0, 70.0, 200.0))
     assert not lagged.rejects_level(1.2)
+    # ... judged on the lag's own scatter (m2 stiction-000: χ² 8914 for a level, 4475 for a lag,
+    # 25 starts: 24 scatters of the lag's, 12 of the level's).
+    levels = tuple(0.0465 * (1.0 + 0.01 * k) for k in range(1, 101))
+    chi2 = tuple(8914.0 + 200.0 * k for k in range(1, 101))
+    lagged = StartLags(25, 0.0185, 0.0465, 0.0465, 8914.0, 4475.0, 8914.0, 0.0005, levels, chi2)
+    assert not lagged.rejects_level(0.0847)
     # No levels tried (too few starts reached one): nothing to reject with.
     assert not StartLags(13, 0.0, 1.0, 1.0, 6.0, 6.0, 6.0, 0.005).rejects_level(1.6)
