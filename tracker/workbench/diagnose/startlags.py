@@ -75,6 +75,9 @@ class StartLags:
     chi2_delay: float
     chi2_level: float
     dt_s: float
+    # The break-away levels tried (absolute, N·m) and each one's χ² (empty when none was tried).
+    levels_nm: tuple[float, ...] = ()
+    chi2_levels: tuple[float, ...] = ()
 
     def _scale(self, chi2: float) -> float:
         """The log's own scatter: the best story's χ² per degree of freedom, at least 1 (the
@@ -104,6 +107,26 @@ class StartLags:
             and (self.chi2_none - self.chi2_level) / scale > MIN_CHI2
             and (self.chi2_delay - self.chi2_level) / scale > MIN_CHI2
         )
+
+    def rejects_level(self, level_nm: float) -> bool:
+        """Whether the start times reject a break-away at ``level_nm`` (a level fitted some other
+        way, by simulation): its χ² exceeds the best level's by more than ``MIN_CHI2`` on the
+        log's own scatter. A level at or under Coulomb is the "neither" story; one above every
+        level tried is judged at the highest tried (the torque reached it on some start). Starts
+        a constant lag explains significantly better than any level measure no break-away, and
+        reject none."""
+        if (
+            not self.levels_nm
+            or (self.chi2_level - self.chi2_delay) / self._scale(self.chi2_delay) > MIN_CHI2
+        ):
+            return False
+        scale = self._scale(self.chi2_level)
+        if level_nm <= self.coulomb_nm:
+            chi2 = self.chi2_none
+        else:
+            i = int(np.searchsorted(np.asarray(self.levels_nm), level_nm))
+            chi2 = self.chi2_levels[min(i, len(self.chi2_levels) - 1)]
+        return (chi2 - self.chi2_level) / scale > MIN_CHI2
 
     def describe(self) -> str:
         return (
@@ -226,6 +249,7 @@ def analyse_start_lags(
     grid = np.arange(1, LEVEL_GRID + 1) * sliding_coulomb_nm * LEVEL_STEP
     grid = grid[grid < top]
     best_level, chi2_level = 0.0, chi2_none
+    chi2 = np.zeros(0)
     if grid.size:
         reach_s = np.full((grid.size, len(starts)), math.inf)
         excess_after = np.zeros((grid.size, len(starts)))
@@ -254,6 +278,8 @@ def analyse_start_lags(
         chi2_delay,
         chi2_level,
         dt,
+        tuple(float(v) for v in sliding_coulomb_nm + grid[: chi2.size]),
+        tuple(float(v) for v in chi2),
     )
 
 
