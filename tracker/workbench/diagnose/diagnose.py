@@ -198,11 +198,8 @@ def diagnose(
         analyse_rests(sig, base_reg, base_model, sliding_coulomb),
         analyse_start_lags(sig, base_model, sliding_coulomb, slow_residual_nm(sig, base_reg)),
     )
-    # The torque regression's own base values predict worse than the current ones: its values
-    # (and the candidates' it supports) sit on a base the simulation rejects.
-    rejected = not refit_score.sse < current.sse
     rows = [
-        judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present, rejected)
+        judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)
         for scr in screens.values()
     ]
     step(0.7)

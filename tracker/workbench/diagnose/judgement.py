@@ -76,8 +76,6 @@ MIN_HALF_GAIN_TWO_MASS = 0.025  # torque effects on a two-mass model: gain on ea
 # round): the same bar, on each half of the run, against the present structure refitted alike.
 MIN_HALF_GAIN_JOINT = MIN_HALF_GAIN_TWO_MASS
 JOINT_REFIT_EVALS = 30
-MIN_HELD_OUT_T = MIN_BREAKAWAY_T  # block t of a held-out half's gain, for values fitted by simulation
-FRICTION = ("viscous", "coulomb")  # the base's friction, refitted with a torque effect by simulation
 BELT_FREQUENCIES_HZ = (3.0, 4.5, 6.5, 9.0, 12.0, 16.0, 22.0, 30.0, 42.0, 60.0)
 BELT_DAMPINGS = (0.05, 0.15, 0.4)
 EFFECT_PARAMS = {"gravity": 2, "ripple": 3, "stiction": 2, "compliance": 2}
@@ -218,17 +216,12 @@ def judge_candidate(
     two_mass: bool,
     cancel: Callable[[], bool] | None,
     present: bool = False,
-    regression_rejected: bool = False,
 ) -> Judged:
     """Build the candidate model of ``scr``'s effect and decide whether it is significant.
 
     ``present``: the model already has effects (a second round), so ``base_model`` is the present
     structure refitted by simulation (:func:`refit_present_structure`), and a torque effect the
     screening supports is also refitted by simulation together with it (:func:`_refit_jointly`).
-    ``regression_rejected``: the torque regression's own base values predict worse than the
-    current model's (the regression is unreliable on this log: a coarse encoder's acceleration),
-    so a torque effect it supports is also refitted by simulation, on held-out halves
-    (:func:`_held_out_refit`).
     """
     effect = scr.effect
     cand = _candidate_model(base_model, scr, ctx)
@@ -339,27 +332,6 @@ def judge_candidate(
         significant = min(judge.half_gains(base_score, score)) >= MIN_HALF_GAIN_TWO_MASS and _kstep_ok(
             effect, cmp
         )
-    elif (
-        regression_rejected
-        and not present
-        and not two_mass
-        and screen_ok
-        and not significant
-        and effect in TORQUE_EFFECTS
-    ):
-        # The regression's values sit on a base the simulation rejected (a coarse encoder's
-        # acceleration put the inertia far off): refit the effect with the friction by
-        # simulation, on one half of the run, and judge it on the other against the base
-        # friction refitted alike. (Where the regression's base holds, a torque it supports but
-        # the simulation rejects is no effect: a clean Stribeck log's sin θ torque gained 12-14 %
-        # on such halves.)
-        held = _held_out_refit(judge, base_model, cand, cancel)
-        if min(held) >= MIN_HELD_OUT_GAIN:
-            names = [k for k in cand.free_param_names() if k.split(".")[0] in (effect, *FRICTION)]
-            cand, _ = refine(judge, cand, names, max_evals=JOINT_REFIT_EVALS, cancel=cancel)
-            score = judge.score(cand)
-            cmp = judge.compare(base_score, score)
-            significant = _kstep_ok(effect, cmp)
     elif present and screen_ok and not significant and effect in TORQUE_EFFECTS:
         joint, joint_score = _refit_jointly(judge, base_model, cand, cancel)
         joint_cmp = judge.compare(base_score, joint_score)
@@ -449,32 +421,6 @@ def _refit_jointly(
     names = [*base.free_param_names(), *(k for k in cand.free_param_names() if k not in base.params)]
     fitted, _ = refine(judge, cand, names, max_evals=JOINT_REFIT_EVALS, cancel=cancel)
     return fitted, judge.score(fitted)
-
-
-def _held_out_refit(
-    judge: KStepJudge, base: AxisModel, cand: AxisModel, cancel: Callable[[], bool] | None
-) -> tuple[float, float]:
-    """How much better ``cand`` predicts than ``base`` on held-out halves of the run, both with
-    their friction (and ``cand`` its new effect) refitted by simulation on the other half.
-
-    Returns the share of the base's held-out k-step error removed, per half (0 where the block
-    t-test of that half's errors is below ``MIN_HELD_OUT_T``: values chosen by simulation alone
-    must stand out of the log's own scatter, as a break-away does; a clean 500-count log's
-    sin θ torque gained 6-8 % at t = 2.4-3.6, an unbalance 23 % at t = 4.2-4.9).
-    """
-    half = judge.halves()
-    gains = []
-    for h in (0, 1):
-        fit_on, judge_on = judge.subset(half == h), judge.subset(half != h)
-        scores = []
-        for m in (base, cand):
-            new = [k for k in m.free_param_names() if k not in base.params]
-            names = [k for k in m.free_param_names() if k.split(".")[0] in FRICTION] + new
-            fitted, _ = refine(fit_on, m, names, max_evals=JOINT_REFIT_EVALS, cancel=cancel)
-            scores.append(judge_on.score(fitted))
-        cmp = judge_on.compare(scores[0], scores[1])
-        gains.append(cmp.improvement if cmp.t_stat >= MIN_HELD_OUT_T else 0.0)
-    return gains[0], gains[1]
 
 
 def refine_leaders(

@@ -20,7 +20,10 @@ from tracker.workbench.diagnose.judgement import MIN_CLIPPED_SHARE, _physical, w
 
 
 def _ctx(u_v: np.ndarray) -> Any:
-    return SimpleNamespace(sig=SimpleNamespace(u_v=u_v))
+    """The evidence context the clip rules read: the command, and a residual torque that gathers
+    wholly where the command is clipped (so that the clamp rule alone decides here)."""
+    return SimpleNamespace(sig=SimpleNamespace(u_v=u_v),
+                           concentration=lambda mask: (1.0, float(np.mean(mask))))
 
 
 def _clip(level_v: float) -> AxisModel:
