@@ -21,9 +21,11 @@ on every connection and whenever the limits change the driver programs them in c
 inside and rounded inward, with a braking deceleration from the model (half of K·Vmax/J); the
 board then brakes an axis whose stopping distance reaches a limit and refuses commands further
 out, at its own tick, however late the host is. A board that answers ``L`` with an error is shown in status as
-"limits enforced by the host only". While an axis is lent to an experiment the board's
-watchdog is shortened to ``LENT_WATCHDOG_MS`` (a host stall longer than that stops the
-sweep instead of letting it run on); the URL's watchdog comes back with the hand-back. No answer for
+"limits enforced by the host only"; then, while an axis is lent to an experiment, the board's
+watchdog is shortened to ``LENT_WATCHDOG_MS``, the longest stall the friction sweep's capped
+moves are made for (a longer one stops the sweep instead of letting it run on), and the URL's
+watchdog comes back with the hand-back. A board that enforces the limits keeps the URL's
+watchdog (a loaded machine's pty has delivered a line 0.26 s late). No answer for
 ``link_lost_s`` (the URL's ``link_lost_ms``, 0.25 s by default), or a port that fails,
 latches "link lost" and disables; the supervisor then reconnects with back-off (0.25 s
 doubling to 5 s) and the board stays disarmed until the fault is cleared and the driver
@@ -67,7 +69,7 @@ IDLE_READ_S = 0.1
 MAX_BEHIND_S = 0.1
 HELLO_WAIT_S = 3.0  # an Arduino restarts when its port opens: ~2 s of boot loader first
 RTT_WINDOW = 500
-LENT_WATCHDOG_MS = 200  # the board's watchdog while an experiment has an axis (at most the URL's)
+LENT_WATCHDOG_MS = 200  # the watchdog while an experiment has an axis of a host-only-limits board
 BRAKE_SHARE = 0.5  # of the model's K·Vmax/J: the deceleration the board's braking zone counts on
 # The board's lines sit this far inside the driver's: an axis at rest next to its line reads a
 # speed of 0 counts a tick while the full command moves it a few counts in two ticks (the
@@ -264,7 +266,8 @@ class SerialMotorDriver(FaultLatch):
         except BaseException as exc:  # noqa: BLE001 - handed to the future
             done.set_exception(exc)
             return done
-        self._want_wd_ms = min(LENT_WATCHDOG_MS, self.spec.watchdog_ms or LENT_WATCHDOG_MS)
+        if self._board_limits != BOARD_LIMITS:
+            self._want_wd_ms = min(LENT_WATCHDOG_MS, self.spec.watchdog_ms or LENT_WATCHDOG_MS)
         self._lent = (axis, experiment, done)
         self._lent_volts = first
         self._lent_t = self._board_s

@@ -17,7 +17,7 @@ The positioning moves between runs are capped so that they cannot pass the limit
 their own (:func:`_push_cap`): a host that stalls leaves the board holding the last command,
 so every command is at most what the axis can be held at for a whole stall (the serial
 board's watchdog while the rig is lent, ``STALL_S``) and then coast to rest on friction
-alone before the line — with the model's K, J and half its friction.
+alone before the line — with the model's K, J and 0.8 of its friction.
 """
 
 from __future__ import annotations
@@ -42,10 +42,12 @@ MIN_MEASURE_S = 0.15
 RAMP_V_PER_S = 0.3
 TRAVEL_FRACTION = 0.85
 MAX_RUN_S = 1.0  # measured part of a run; long enough to average, short enough to be quick
-# The positioning moves: the longest host stall they must survive (the serial driver's board
-# watchdog while an axis is lent, tracker.drivers.serial_motor.LENT_WATCHDOG_MS: longer, and
-# the board disarms and the axis coasts), the share of the model's friction counted on to stop
-# it, and a margin before the limit line for the encoder's compliance and rounding.
+# The positioning moves: the longest host stall they must survive on their own (the serial
+# driver's board watchdog while an axis is lent, tracker.drivers.serial_motor.LENT_WATCHDOG_MS,
+# on a board that does not enforce limits: longer, and the board disarms and the axis coasts;
+# a board that enforces them brakes before its lines whatever the stall), the share of the
+# model's friction counted on to stop it, and a margin before the limit line for the encoder's
+# compliance and rounding.
 STALL_S = 0.2
 FRICTION_SHARE = 0.8
 LINE_MARGIN_RAD = 0.01
