@@ -18,6 +18,7 @@ import math
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from tracker.drivers import motor_protocol as mp
 from tracker.drivers.motor_board import MotorBoard
@@ -39,7 +40,8 @@ class OldBoard(MotorBoard):
         return super()._act(line, now)
 
 
-def one(stall_s: float, onset_deg: float, old_board: bool) -> tuple[float, list[str], bool]:
+def one(stall_s: float, onset_deg: float, old_board: bool,
+        lines: bool) -> tuple[float, tuple[str, ...], bool]:
     """(deepest pan angle in degrees, the driver's faults, whether the stall happened)."""
     with tempfile.TemporaryDirectory() as tmp:
         emu = MotorEmulator(OldBoard() if old_board else None, pty_link=Path(tmp) / "ttyRIG")
@@ -51,7 +53,7 @@ def one(stall_s: float, onset_deg: float, old_board: bool) -> tuple[float, list[
             step(volts)
             deepest[0] = min(deepest[0], twin.load_rad("pan"))
 
-        twin.step = tracked  # type: ignore[method-assign]
+        twin.step = tracked  # type: ignore[method-assign,assignment]
         emu.start()
         d = SerialMotorDriver(parse_driver_url(f"serial://{emu.path}?baud=1000000&rate=250&watchdog_ms=1000"),
                               limits_rad={"pan": LINES, "tilt": (-0.78, 0.78)})
@@ -61,8 +63,9 @@ def one(stall_s: float, onset_deg: float, old_board: bool) -> tuple[float, list[
             d.enable()
             for _ in range(10):
                 d.tick()
+            kw: dict[str, Any] = {"limits_rad": LINES} if lines else {}  # as the live job (not on main)
             sweep = friction_sweep("pan", d.sample_period_s, (d.read_encoder("pan"), d.sample_time_s),
-                                   travel_rad=0.85 * LINES[1], voltages_per_direction=4)
+                                   travel_rad=0.85 * LINES[1], voltages_per_direction=4, **kw)
             d.take_over("bench", "pan", sweep)
             stalled = False
             end = time.monotonic() + 4.0
@@ -88,13 +91,16 @@ def main() -> None:
     ap.add_argument("--stalls", default="0.03,0.06,0.1,1,inf")
     ap.add_argument("--onsets", default="-2,-30,-60", help="degrees the pan has passed when the host stalls")
     ap.add_argument("--host-limits-only", action="store_true", help="a board that refuses L/B")
+    ap.add_argument("--lines", action="store_true",
+                    help="the sweep gets the guard lines as its limits (as the live job; else the travel)")
     args = ap.parse_args()
     print(f"{'stall s':>8} {'onset°':>7} {'deepest°':>9} {'to soft°':>9} {'to stop°':>9}  faults")
     for stall in (float(x) for x in args.stalls.split(",")):
         for onset in (float(x) for x in args.onsets.split(",")):
-            deep, faults, stalled = one(stall, onset, args.host_limits_only)
+            deep, faults, stalled = one(stall, onset, args.host_limits_only, args.lines)
+            said = "; ".join(f[-70:] for f in faults) or "-"
             print(f"{stall:>8g} {onset:>7g} {deep:>9.2f} {SOFT_DEG + deep:>9.2f} {STOP_DEG + deep:>9.2f}  "
-                  f"{'' if stalled else '(no stall) '}{'; '.join(f[:70] for f in faults) or '-'}", flush=True)
+                  f"{'' if stalled else '(no stall) '}{said}", flush=True)
 
 
 if __name__ == "__main__":

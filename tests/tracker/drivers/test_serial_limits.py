@@ -47,7 +47,7 @@ class Rig:
             self.deepest = min(self.deepest, twin.load_rad("pan"))
             self.deepest_motor = min(self.deepest_motor, twin.motor_rad("pan"))
 
-        twin.step = tracked  # type: ignore[method-assign]
+        twin.step = tracked  # type: ignore[method-assign,assignment]
         self.emu.start()
         url = f"serial://{self.emu.path}?baud=1000000&rate={RATE_HZ}&watchdog_ms={watchdog_ms}"
         self.d = SerialMotorDriver(parse_driver_url(url), limits_rad={"pan": LINES, "tilt": (-0.78, 0.78)})
