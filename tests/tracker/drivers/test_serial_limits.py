@@ -196,3 +196,23 @@ def test_a_host_that_freezes_during_the_sweeps_first_move_never_passes_the_soft_
     d.clear_faults()
     d.tick()
     assert rig.emu.board.watchdog_ms == 1000  # the URL's watchdog is back with the hand-back
+
+
+def test_the_board_answers_the_limit_lines_and_refuses_bad_ones() -> None:
+    board = MotorBoard()
+
+    def ask(verb: str, *args: object) -> tuple[str, tuple[str, ...]]:
+        line = mp.parse_line(board.handle(mp.frame(9, verb, *args)), mp.MAX_REPLY)
+        return line.verb, line.args
+
+    assert ask("L", -100, 100, -50, 50)[0] == "OK" and board.limits_counts == {"pan": (-100, 100),
+                                                                                 "tilt": (-50, 50)}
+    assert ask("L", -100, 100, -50) == ("ERR", ("4", "L", "needs", "4", "counts", "(or", "none)"))
+    assert ask("L", 100, -100, -50, 50)[1][0] == "5"  # lo >= hi
+    assert ask("L", -(2**31) - 1, 100, -50, 50)[1][0] == "5"  # beyond 32 bits
+    assert board.limits_counts == {"pan": (-100, 100), "tilt": (-50, 50)}  # a refused line changes nothing
+    assert ask("B", 5, -1)[1][0] == "5" and ask("B", 5)[1][0] == "4"
+    assert ask("B", 700_000, 1_300_000)[0] == "OK" and board.brake_cps2 == {"pan": 700_000, "tilt": 1_300_000}
+    longest = mp.frame(255, "L", -(2**31), -(2**31) + 1, -(2**31), -(2**31) + 1)
+    assert len(longest) <= mp.MAX_LINE
+    assert ask("L")[0] == "OK" and board.limits_counts is None  # off
