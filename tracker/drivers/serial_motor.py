@@ -539,7 +539,8 @@ class SerialMotorDriver(FaultLatch):
         self._have_angle = True
         self._board_armed = counts.armed
         if expect_armed and self._enabled and not counts.armed:
-            why = (f"the board's watchdog zeroed the command (no command for {self.spec.watchdog_ms} ms)"
+            wd_ms = self._board_wd_ms or self.spec.watchdog_ms
+            why = (f"the board's watchdog zeroed the command (no command for {wd_ms} ms)"
                    if counts.watchdog_tripped else "the board disarmed itself")
             self.latch_fault(f"{self.spec.url}: {why}")
 

@@ -175,23 +175,26 @@ def test_a_host_that_freezes_during_the_sweeps_first_move_never_passes_the_soft_
     done = d.take_over("a test", "pan", sweep)
     old = rig.d.board_limits == HOST_LIMITS
     assert rig.emu.board.watchdog_ms == 1000  # set at the next exchange
-    frozen = False
+    frozen, gap = False, 0.0
     for _ in range(int(2.5 * RATE_HZ)):
         if not frozen and d.read_encoder("pan") < math.radians(-30.0):
             assert rig.emu.board.watchdog_ms == (200 if old else 1000)
             frozen = True
+            t0 = time.perf_counter()
             freeze(stall_s)
             if math.isinf(stall_s):
                 break
+            d.tick()
+            gap = time.perf_counter() - t0
         d.tick()
     rig.emu.board.catch_up()
     assert frozen
     assert rig.deepest > LINES[0], math.degrees(rig.deepest)
-    if stall_s < 0.2:
+    if stall_s < 0.2 and gap < 0.18:  # a loaded machine may hold the thread longer than asked
         assert not d.faults(), d.faults()
         assert not done.done()  # the sweep goes on
     elif old:
-        assert any("watchdog" in f for f in d.faults()), d.faults()
+        assert any("watchdog" in f and "200 ms" in f for f in d.faults()), d.faults()
     d.hand_back()
     d.clear_faults()
     d.tick()
