@@ -162,13 +162,12 @@ Sweep = Generator[float, Reading, "FrictionResult"]
 
 @dataclass(frozen=True, slots=True)
 class _Mover:
-    """What a positioning move must respect: the axis' K (N·m/V), J (kg·m²), model friction
-    (N·m, N·m·s/rad), the limit lines (rad) and the stall (s) it must survive."""
+    """What a positioning move must respect: the axis' K (N·m/V), J (kg·m²), model Coulomb
+    friction (N·m), the limit lines (rad) and the stall (s) it must survive."""
 
     gain: float
     inertia: float
     coulomb: float
-    viscous: float
     limits: tuple[float, float]
     stall_s: float
 
@@ -181,8 +180,10 @@ def _push_cap(mv: _Mover, speed_out: float, room: float, dt: float) -> float:
     and the axis coasts on friction alone at a_c = share·Coulomb/J. With the outward
     acceleration a held: v·S + a·S²/2 + (v + a·S)²/(2·a_c) ≤ room, a quadratic in a whose larger
     root is the cap; if even stopping within the stall overshoots (v·S/2 > room), the
-    deceleration that stops in the room. Then V = (J·a + share·(c + b·v))/K. An axis moving
-    inward is taken as at rest (its inward travel and the time it takes to turn only help).
+    deceleration that stops in the room. Then V = (J·a + share·c)/K: the viscous term is left
+    out (it falls as a braked axis slows, so counting today's b·v would overstate the brake),
+    and so only helps. An axis moving inward is taken as at rest (its inward travel and the
+    time it takes to turn only help).
     """
     v = max(speed_out, 0.0)
     d = max(room - LINE_MARGIN_RAD, 1e-6)
@@ -193,7 +194,7 @@ def _push_cap(mv: _Mover, speed_out: float, room: float, dt: float) -> float:
     else:
         c2, c1, c0 = s * s / (2 * a_c), s * s / 2 + v * s / a_c, v * s + v * v / (2 * a_c) - d
         a = (-c1 + math.sqrt(max(c1 * c1 - 4 * c2 * c0, 0.0))) / (2 * c2)
-    return (mv.inertia * a + FRICTION_SHARE * (mv.coulomb + mv.viscous * v)) / mv.gain
+    return (mv.inertia * a + FRICTION_SHARE * mv.coulomb) / mv.gain
 
 
 class _Axis:
@@ -403,7 +404,7 @@ def friction_sweep(
     if not (lines[0] < -end and end < lines[1]) or not (math.isfinite(stall_s) and stall_s >= 0):
         raise DataError(f"friction ID on {axis}: the limit lines {lines} must lie beyond the travel "
                         f"±{end:.4f} rad and the stall {stall_s!r} s be >= 0")
-    mover = _Mover(gain, inertia, preset.coulomb_nm, preset.viscous_nm_s_per_rad, lines, float(stall_s))
+    mover = _Mover(gain, inertia, preset.coulomb_nm, lines, float(stall_s))
     ax = _Axis(axis, dt, first, cancel)
     total_runs = 2 * (voltages_per_direction + 1)
     done = 0
