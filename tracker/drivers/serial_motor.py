@@ -20,12 +20,13 @@ be trusted for a limit, so the board enforces them as well (``L``/``B``, docs/se
 on every connection and whenever the limits change the driver programs them in counts, 2 mrad
 inside and rounded inward, with a braking deceleration from the model (half of K·Vmax/J); the
 board then brakes an axis whose stopping distance reaches a limit and refuses commands further
-out, at its own tick, however late the host is. A board that answers ``L`` with an error is shown in status as
-"limits enforced by the host only"; then, while an axis is lent to an experiment, the board's
-watchdog is shortened to ``LENT_WATCHDOG_MS``, the longest stall the friction sweep's capped
-moves are made for (a longer one stops the sweep instead of letting it run on), and the URL's
-watchdog comes back with the hand-back. A board that enforces the limits keeps the URL's
-watchdog (a loaded machine's pty has delivered a line 0.26 s late). No answer for
+out, at its own tick, however late the host is. A board that answers ``L`` or ``B`` with an
+error is shown in status as "limits enforced by the host only"; then, while an axis is lent
+to an experiment, the board's watchdog is shortened to ``LENT_WATCHDOG_MS``, the longest stall
+the friction sweep's capped moves are made for (a longer one stops the sweep instead of letting
+it run on), and the URL's watchdog comes back with the hand-back. A board that enforces the
+limits keeps the URL's watchdog (a loaded machine's pty has delivered a line 0.26 s late).
+No answer for
 ``link_lost_s`` (the URL's ``link_lost_ms``, 0.25 s by default), or a port that fails,
 latches "link lost" and disables; the supervisor then reconnects with back-off (0.25 s
 doubling to 5 s) and the board stays disarmed until the fault is cleared and the driver
@@ -82,9 +83,7 @@ Experiment = Generator[float, tuple[float, float], Any]
 
 
 class _BoardError(Exception):
-    def __init__(self, text: str, code: int | None = None) -> None:
-        super().__init__(text)
-        self.code = code
+    pass
 
 
 class SerialMotorDriver(FaultLatch):
@@ -445,8 +444,7 @@ class SerialMotorDriver(FaultLatch):
             if line.verb == "ERR" and line.seq in (seq, None):
                 self.errors += 1
                 self._last_error = f"board: {verb} refused: ERR {' '.join(line.args)}"
-                code = line.args[0] if line.args else ""
-                raise _BoardError(self._last_error, int(code) if code.isdigit() else None)
+                raise _BoardError(self._last_error)
             if line.seq == seq:
                 now = time.perf_counter()
                 self._rtts.append(now - sent)
