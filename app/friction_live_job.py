@@ -65,7 +65,7 @@ def friction_live_job(
 
         sweep = friction_sweep(axis, rig.sample_period_s, (rig.read_encoder(axis), rig.sample_time_s),
                                travel_rad=travel_rad, voltages_per_direction=voltages, progress=report,
-                               cancel=cancel)
+                               cancel=cancel, limits_rad=(lo, hi))  # its moves never pass them
         progress(0.0, f"{axis}: sweeping the rig {rig.spec.url}")
         done = rig.take_over(f"the {KIND} job", axis, sweep)
         try:

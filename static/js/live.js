@@ -105,6 +105,7 @@ function describeDriver(d) {
   if (!d || d.kind === "sim") return "simulated rig";
   const parts = [d.profile ? `${d.url} (${d.profile})` : d.url, d.state];
   if (d.board) parts.push(d.board);
+  if (d.board_limits) parts.push(d.board_limits);  // "limits enforced by the board" / "... by the host only"
   if (d.achieved_rate_hz != null) parts.push(`${fmt(d.achieved_rate_hz, 0)} Hz`);
   if (d.rtt_ms_median != null) parts.push(`RTT ${fmt(d.rtt_ms_median, 0)} ms`);
   if (d.retransmits) parts.push(`${d.retransmits} resent`);

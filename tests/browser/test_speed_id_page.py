@@ -200,10 +200,10 @@ def _wait_for_status(pg, server: Server, word: str) -> None:  # type: ignore[no-
 
 
 def test_the_live_sweep_runs_on_the_serial_rig_and_cancels(browser, serial_server: Server) -> None:  # type: ignore[no-untyped-def]
-    # The sweep's first move drives the pan at 10 V towards 0.85 of its limit (~20 rad/s reached
-    # in 60 ms): a loop that stalls 60 ms there (as in its first seconds, while the service
-    # warms up, on a loaded machine) runs it into the end stop, an over-travel fault. Start
-    # once the loop keeps its clock; tracker/workbench's move is where that hazard lives.
+    # The sweep's first move drove the pan at 10 V towards 0.85 of its limit: a loop that stalled
+    # 60 ms there (as in its first seconds, while the service warms up, on a loaded machine) ran
+    # it into the end stop. Its moves are capped for a stall now and the board brakes before its
+    # limits; starting once the loop keeps its clock still keeps a warm-up stall out of the test.
     _wait_connected_and_holding(serial_server, 30, steady_s=2.0)
     ctx, pg, errors = open_friction_page(browser, serial_server)
     pg.wait_for_function("!document.querySelector('#fric-live').hidden", timeout=T)

@@ -6,6 +6,10 @@ counted on the motor shaft. The twin is :func:`tracker.plant.simulate.advance` o
 tilt presets (plus any hidden effects of a rig config), advanced in 1 ms samples up to the
 moment each line arrives, the command zero-order held as a board's PWM update would hold it;
 mechanical end stops sit 5° past the soft limits.
+
+Limits the board enforces (``L``/``B``, the doc's C): at every 1 ms tick, per axis, an axis
+moving outward inside its braking zone gets the full reverse command, and a command pushing
+further out past a limit is replaced by 0 — whatever the host does or fails to do.
 """
 
 from __future__ import annotations
@@ -34,6 +38,23 @@ WATCHDOG_RANGE_MS = (10, 2000)
 SEED_COUNTS_PER_REV = 2000
 SEED_GEAR_RATIO = MOTOR_GEAR_RATIO * PULLEY_RATIO
 VMAX_MV = 10_000
+TICKS_PER_S = 1000  # the board's limit check runs once per twin sample (1 ms)
+COUNT_RANGE = (-(2**31), 2**31 - 1)  # signed 32-bit counts
+
+
+def limit_output(cmd_mv: int, count: int, v: int, lo: int, hi: int, brake_cps2: int, vmax_mv: int) -> int:
+    """The board's limit check for one axis at one tick (docs/serial-protocol.md, ``limit()``):
+    ``v`` the counts moved since the last tick; the output in mV."""
+    if brake_cps2 > 0 and v != 0:
+        vc = v * TICKS_PER_S  # counts per second
+        zone = vc * vc // (2 * brake_cps2) + abs(v)  # braking distance plus one tick's travel
+        if v > 0 and count + zone >= hi:
+            return -vmax_mv
+        if v < 0 and count - zone <= lo:
+            return vmax_mv
+    if (count >= hi and cmd_mv > 0) or (count <= lo and cmd_mv < 0):
+        return 0
+    return cmd_mv
 
 
 class RigTwin:
@@ -109,6 +130,12 @@ class MotorBoard:
         self.watchdog_tripped = False
         self.watchdog_ms = WATCHDOG_DEFAULT_MS
         self.command_mv = {a: 0 for a in AXES}
+        self.output_mv = {a: 0 for a in AXES}  # what the amplifier gets: the command after the limits
+        self.limits_counts: dict[str, tuple[int, int]] | None = None  # L; None: off
+        self.brake_cps2 = {a: 0 for a in AXES}  # B; 0: no braking zone
+        self._prev_count = {a: self.counts(a) for a in AXES}
+        self.limit_brakes = {a: 0 for a in AXES}  # ticks the braking zone reversed the output
+        self.limit_refusals = {a: 0 for a in AXES}  # ticks a command past a limit was zeroed
         self._last_command_s = 0.0
         self.lines = 0
         self.errors = 0
@@ -132,8 +159,28 @@ class MotorBoard:
             t = self._k * DT_S
             if self.armed and t - self._last_command_s > self.watchdog_ms * 1e-3:
                 self._disarm(watchdog=True)
-            self.twin.step({a: self.command_mv[a] * 1e-3 for a in AXES})
+            self._limit_tick()
+            self.twin.step({a: self.output_mv[a] * 1e-3 for a in AXES})
             self._k += 1
+
+    def _limit_tick(self) -> None:
+        """The doc's ``limit()`` per axis: the outputs for this tick. The braking zone acts armed
+        or not (it only takes outward speed away: a coasting axis after a watchdog trip too)."""
+        lims = self.limits_counts
+        for a in AXES:
+            c = self.counts(a)
+            v, self._prev_count[a] = c - self._prev_count[a], c
+            cmd = self.command_mv[a]
+            if lims is None:
+                self.output_mv[a] = cmd
+                continue
+            out = limit_output(cmd, c, v, lims[a][0], lims[a][1], self.brake_cps2[a], self.hello.vmax_mv)
+            if out != cmd:
+                if abs(out) == self.hello.vmax_mv and out * v < 0:
+                    self.limit_brakes[a] += 1
+                else:
+                    self.limit_refusals[a] += 1
+            self.output_mv[a] = out
 
     def _disarm(self, watchdog: bool = False) -> None:
         self.armed = False
@@ -191,6 +238,26 @@ class MotorBoard:
                                       line.seq)
             self.watchdog_ms = values[0]
             return mp.frame(seq, "OK")
+        if verb == "L":
+            if not args:
+                self.limits_counts = None
+                return mp.frame(seq, "OK")
+            values = _ints(args, 4)
+            if values is None:
+                raise mp.FramingError(mp.ERR_BAD_ARGUMENT, "L needs 4 counts (or none)", line.seq)
+            if (not all(COUNT_RANGE[0] <= v <= COUNT_RANGE[1] for v in values)
+                    or values[0] >= values[1] or values[2] >= values[3]):
+                raise mp.FramingError(mp.ERR_OUT_OF_RANGE, "limits need lo < hi in 32-bit counts", line.seq)
+            self.limits_counts = {"pan": (values[0], values[1]), "tilt": (values[2], values[3])}
+            return mp.frame(seq, "OK")
+        if verb == "B":
+            values = _ints(args, 2)
+            if values is None:
+                raise mp.FramingError(mp.ERR_BAD_ARGUMENT, "B needs 2 decelerations (counts/s^2)", line.seq)
+            if not all(0 <= v <= COUNT_RANGE[1] for v in values):
+                raise mp.FramingError(mp.ERR_OUT_OF_RANGE, "deceleration outside 0..2^31-1", line.seq)
+            self.brake_cps2 = dict(zip(AXES, values, strict=True))
+            return mp.frame(seq, "OK")
         if verb in ("H", "E"):
             raise mp.FramingError(mp.ERR_BAD_ARGUMENT, f"{verb} takes no arguments", line.seq)
         raise mp.FramingError(mp.ERR_UNKNOWN_VERB, f"unknown verb {verb[:8]}", line.seq)
@@ -205,6 +272,7 @@ class MotorBoard:
         with self._lock:
             self._catch_up(self.now_s())
             self.twin.set_angle(axis, theta_rad)
+            self._prev_count[axis] = self.counts(axis)  # a placement is no speed
 
 
 def _ints(args: tuple[str, ...], n: int) -> list[int] | None:

@@ -7,7 +7,9 @@ One line each way per request (docs/serial-protocol.md)::
 ``seq`` is a decimal 0..255 the board echoes in its reply; ``crc`` is the CRC-8 (polynomial
 0x07, initial value 0, no reflection: CRC-8/SMBUS) of every byte before the ``*``, as two
 upper-case hex digits. Host verbs: ``H`` hello, ``W <ms>`` watchdog, ``A <0|1>`` arm,
-``C <pan_mV> <tilt_mV>`` command (answered with the counts), ``E`` read the counts. Board
+``C <pan_mV> <tilt_mV>`` command (answered with the counts), ``E`` read the counts,
+``L <pan_lo> <pan_hi> <tilt_lo> <tilt_hi>`` limits the board enforces (counts; ``L`` alone: off),
+``B <pan> <tilt>`` the braking zone's deceleration (counts/s², 0: none). Board
 replies: ``H key=value ...``, ``OK``, ``E <t_us> <pan_counts> <tilt_counts> <flags>`` and
 ``ERR <code> <text>``.
 """

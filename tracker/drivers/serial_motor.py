@@ -15,7 +15,18 @@ powered up at its centre. A board that restarted (a new boot nonce) is re-refere
 angle continues from the last one read.
 
 Safety: the soft limits are enforced here too — a command that drives further past a limit
-line is sent as 0 V, and past the end stop (limit + 5°) a fault latches. No answer for
+line is sent as 0 V, and past the end stop (limit + 5°) a fault latches. Host timing can never
+be trusted for a limit, so the board enforces them as well (``L``/``B``, docs/serial-protocol.md):
+on every connection and whenever the limits change the driver programs them in counts, 2 mrad
+inside and rounded inward, with a braking deceleration from the model (half of K·Vmax/J); the
+board then brakes an axis whose stopping distance reaches a limit and refuses commands further
+out, at its own tick, however late the host is. A board that answers ``L`` or ``B`` with an
+error is shown in status as "limits enforced by the host only"; then, while an axis is lent
+to an experiment, the board's watchdog is shortened to ``LENT_WATCHDOG_MS``, the longest stall
+the friction sweep's capped moves are made for (a longer one stops the sweep instead of letting
+it run on), and the URL's watchdog comes back with the hand-back. A board that enforces the
+limits keeps the URL's watchdog (a loaded machine's pty has delivered a line 0.26 s late).
+No answer for
 ``link_lost_s`` (the URL's ``link_lost_ms``, 0.25 s by default), or a port that fails,
 latches "link lost" and disables; the supervisor then reconnects with back-off (0.25 s
 doubling to 5 s) and the board stays disarmed until the fault is cleared and the driver
@@ -59,6 +70,14 @@ IDLE_READ_S = 0.1
 MAX_BEHIND_S = 0.1
 HELLO_WAIT_S = 3.0  # an Arduino restarts when its port opens: ~2 s of boot loader first
 RTT_WINDOW = 500
+LENT_WATCHDOG_MS = 200  # the watchdog while an experiment has an axis of a host-only-limits board
+BRAKE_SHARE = 0.5  # of the model's K·Vmax/J: the deceleration the board's braking zone counts on
+# The board's lines sit this far inside the driver's: an axis at rest next to its line reads a
+# speed of 0 counts a tick while the full command moves it a few counts in two ticks (the
+# one-count speed resolution), so the board stops up to ~3 counts (0.6 mrad) past its line.
+BOARD_INSET_RAD = 0.002
+BOARD_LIMITS = "limits enforced by the board"
+HOST_LIMITS = "limits enforced by the host only"
 # An experiment run by the control loop (take_over): yields volts, is sent (angle rad, board time s).
 Experiment = Generator[float, tuple[float, float], Any]
 
@@ -95,6 +114,13 @@ class SerialMotorDriver(FaultLatch):
                                                         get_preset(a).soft_limit_rad) for a in AXES}
         self._stops = {a: max(abs(lo), abs(hi)) + HARD_STOP_MARGIN_RAD
                        for a, (lo, hi) in self._limits.items()}
+        # The board's braking zone counts on BRAKE_SHARE·K·Vmax/J (rad/s² at the load): K/J here.
+        self._accel_per_v = {a: get_preset(a).gain_nm_per_v / get_preset(a).inertia_kg_m2 for a in AXES}
+        self._limits_dirty = True  # the board's limits to be (re)programmed
+        self._board_limits: str | None = None  # BOARD_LIMITS, HOST_LIMITS, None before a connection
+        self.board_limit_counts: dict[str, tuple[int, int]] | None = None
+        self._want_wd_ms = spec.watchdog_ms or 100
+        self._board_wd_ms: int | None = None
         self._link_lost_s = (float(link_lost_s) if link_lost_s is not None
                              else (spec.link_lost_ms or SERIAL_LINK_LOST_MS) / 1e3)
         self._timeout = reply_timeout_s or max(0.005, 3 * self._dt)
@@ -177,6 +203,24 @@ class SerialMotorDriver(FaultLatch):
         """The limit lines the driver enforces on ``axis`` (rad)."""
         return self._limits[self._check_axis(axis)]
 
+    def set_limits(self, axis: str, lower_rad: float, upper_rad: float) -> None:
+        """New limit lines for ``axis`` (rad, within the end stops): enforced here at once and
+        programmed into the board at the next exchange."""
+        self._check_axis(axis)
+        lo, hi = float(lower_rad), float(upper_rad)
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi
+                and max(-lo, hi) < self._stops[axis]):
+            raise ConfigError(f"{axis}: limits {lower_rad!r}..{upper_rad!r} rad must be finite, "
+                              f"lower < upper, within the end stops ±{self._stops[axis]:.4f} rad")
+        self._limits[axis] = (lo, hi)
+        self._limits_dirty = True
+
+    @property
+    def board_limits(self) -> str | None:
+        """Who enforces the limits: BOARD_LIMITS, HOST_LIMITS (the board refused ``L``), or None
+        before the first connection."""
+        return self._board_limits
+
     def enable(self) -> None:
         self.refuse_if_faulted()
         if self._held_by is not None:
@@ -221,6 +265,8 @@ class SerialMotorDriver(FaultLatch):
         except BaseException as exc:  # noqa: BLE001 - handed to the future
             done.set_exception(exc)
             return done
+        if self._board_limits != BOARD_LIMITS:
+            self._want_wd_ms = min(LENT_WATCHDOG_MS, self.spec.watchdog_ms or LENT_WATCHDOG_MS)
         self._lent = (axis, experiment, done)
         self._lent_volts = first
         self._lent_t = self._board_s
@@ -235,6 +281,7 @@ class SerialMotorDriver(FaultLatch):
         if lent is not None:
             self._u[lent[0]] = 0.0
         self._held_by = None
+        self._want_wd_ms = self.spec.watchdog_ms or 100
         if lent is not None:
             _, experiment, done = lent
             # From another thread while the loop's thread runs a step: that step is its last
@@ -267,6 +314,7 @@ class SerialMotorDriver(FaultLatch):
         self._lent = None
         self._u[axis] = 0.0
         self._held_by = None
+        self._want_wd_ms = self.spec.watchdog_ms or 100
         if not done.done():  # not already ended by hand_back from another thread
             if error is None:
                 done.set_result(result)
@@ -357,6 +405,10 @@ class SerialMotorDriver(FaultLatch):
             "rtt_ms_median": _ms(rtts[len(rtts) // 2]) if rtts else None,
             "rtt_ms_p95": _ms(rtts[int(0.95 * (len(rtts) - 1))]) if rtts else None,
             "watchdog_ms": self.spec.watchdog_ms,
+            "board_watchdog_ms": self._board_wd_ms,
+            "board_limits": self._board_limits,
+            "board_limit_counts": None if self.board_limit_counts is None else
+            {a: list(v) for a, v in self.board_limit_counts.items()},
             "exchanges": self.exchanges,
             "timeouts": self.timeouts,
             "errors": self.errors,
@@ -406,6 +458,12 @@ class SerialMotorDriver(FaultLatch):
         where = self.spec.url
         want = self._enabled  # read once: enable()/disable() may come from another thread
         try:
+            if self._limits_dirty:
+                self._program_limits()
+            wd = self._want_wd_ms
+            if wd != self._board_wd_ms:
+                self._request("W", wd)
+                self._board_wd_ms = wd
             if want != self._board_armed and not (idle and want):
                 self._request("A", int(want))
                 self._board_armed = want
@@ -430,6 +488,33 @@ class SerialMotorDriver(FaultLatch):
         except _BoardError as exc:
             self.latch_fault(f"{where}: {exc}")
 
+    def _program_limits(self, timeout_s: float | None = None) -> None:
+        """Send the board the limit lines in counts, rounded inward, and the braking zone's
+        deceleration (the lock held, the counts' reference known). A board that refuses ``L`` or
+        ``B`` leaves the limits to the host (shown in status); the link's errors propagate."""
+        counts: dict[str, tuple[int, int]] = {}
+        brake: list[int] = []
+        for a in AXES:
+            rpc = self._rad_per_count[a]
+            ref_c, ref_rad = self._ref[a]
+            lo, hi = self._limits[a]
+            counts[a] = (ref_c + math.ceil((lo + BOARD_INSET_RAD - ref_rad) / rpc - 1e-9),
+                         ref_c + math.floor((hi - BOARD_INSET_RAD - ref_rad) / rpc + 1e-9))
+            vmax_v = (self.hello.vmax_mv if self.hello else 10_000) / 1e3
+            brake.append(max(1, int(BRAKE_SHARE * self._accel_per_v[a] * vmax_v / rpc)))
+        try:
+            self._request("B", *brake, timeout_s=timeout_s)
+            self._request("L", *counts["pan"], *counts["tilt"], timeout_s=timeout_s)
+        except _BoardError as exc:
+            self._limits_dirty = False
+            self._board_limits = HOST_LIMITS
+            self.board_limit_counts = None
+            self._last_error = f"{exc} ({HOST_LIMITS})"
+            return
+        self._limits_dirty = False
+        self._board_limits = BOARD_LIMITS
+        self.board_limit_counts = counts
+
     def _limited(self, axis: str, volts: float) -> float:
         lo, hi = self._limits[axis]
         th = self._angle[axis]
@@ -452,7 +537,8 @@ class SerialMotorDriver(FaultLatch):
         self._have_angle = True
         self._board_armed = counts.armed
         if expect_armed and self._enabled and not counts.armed:
-            why = (f"the board's watchdog zeroed the command (no command for {self.spec.watchdog_ms} ms)"
+            wd_ms = self._board_wd_ms or self.spec.watchdog_ms
+            why = (f"the board's watchdog zeroed the command (no command for {wd_ms} ms)"
                    if counts.watchdog_tripped else "the board disarmed itself")
             self.latch_fault(f"{self.spec.url}: {why}")
 
@@ -468,6 +554,7 @@ class SerialMotorDriver(FaultLatch):
             self._port.close()
             self._port = None
         self._board_armed = False
+        self._board_wd_ms = None
 
     # -- the supervisor --------------------------------------------------------------------------
     def _supervise(self) -> None:
@@ -498,7 +585,9 @@ class SerialMotorDriver(FaultLatch):
             self._port = port
             self._have_angle = False
             hello = self._hello()
-            self._request("W", self.spec.watchdog_ms, timeout_s=0.5)
+            wd = self._want_wd_ms
+            self._request("W", wd, timeout_s=0.5)
+            self._board_wd_ms = wd
             self._request("A", 0, timeout_s=0.5)
             self._board_armed = False
             counts = mp.parse_counts(self._request("E", timeout_s=0.5), self.spec.url)
@@ -512,6 +601,7 @@ class SerialMotorDriver(FaultLatch):
             self.re_referenced += int(rebooted)
             self._board_last_us = None  # a new link's clock (maybe a restarted board's) goes on from here
             self._absorb(counts)
+            self._program_limits(0.5)  # a new link may be a new board: its limits again
             self._failing_since = None
             self._next_due = None
             self.connects += 1

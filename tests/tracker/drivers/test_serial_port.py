@@ -81,15 +81,13 @@ def test_a_host_held_up_after_each_request_is_no_lost_link(tmp_path: Path) -> No
         emu.close()
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="open (issue 10): the friction sweep's positioning move drives the full 10 V, "
-                   "so a host stall of 60 ms or more there runs the pan into its end stop "
-                   "(tracker/workbench/experiments/friction_id.py, _Axis.move_to)")
 def test_a_host_stall_during_the_sweeps_first_move_does_not_reach_the_end_stop(tmp_path: Path) -> None:
     """The live sweep's hazard found behind the flaky browser test: the first move (0 to 0.85 of
-    the limit) reaches ~10 rad/s at 10 V; a control loop that stalls 100 ms there (the board
-    holds the last command; its watchdog is 1 s) brings the pan to ~20 rad/s, more than it can
-    brake from in the 19 degrees left before the end stop: over-travel, a latched fault."""
+    the limit) reached ~10 rad/s at 10 V; a control loop that stalled 100 ms there (the board
+    holds the last command; its watchdog was 1 s) brought the pan to ~20 rad/s, more than it can
+    brake from in the 19 degrees left before the end stop: over-travel, a latched fault. Now the
+    move is capped for a stall (friction_id._push_cap), the board brakes before its limits and
+    its watchdog is 200 ms while the sweep has the axis; a 0.1 s stall is no fault at all."""
     import math
 
     from tracker.workbench.experiments.friction_id import friction_sweep
@@ -110,10 +108,11 @@ def test_a_host_stall_during_the_sweeps_first_move_does_not_reach_the_end_stop(t
         done = d.take_over("a test", "pan", sweep)
         stalled = False
         for _ in range(250):  # one second: the first move and its settling
-            if not stalled and d.read_encoder("pan") < math.radians(-2.0) and d._u["pan"] < -5.0:
+            if not stalled and d.read_encoder("pan") < math.radians(-2.0) and d._u["pan"] < -1.0:
                 stalled = True
-                time.sleep(0.1)  # the host stalls once, early in the move, at over 5 V
+                time.sleep(0.1)  # the host stalls once, early in the move, pushing
             d.tick()
+        assert emu.board.twin.load_rad("pan") > lines[0]
         if not stalled or any("over-travel" not in f for f in d.faults()):
             pytest.fail(f"not the case this test is about: stalled {stalled}, faults {d.faults()}")
         assert not d.faults(), d.faults()  # today: pan over-travel at -95 degrees

@@ -12,6 +12,12 @@ to bring the axis near the speed the voltage will hold (shortened from 0.25 s wh
 enough), each pass starts at one end of the travel, and each point's torque is corrected for
 whatever acceleration remains: τ = K·V − J·α̅ (α̅ = 0 at a true steady state, where this is
 exactly the seed's method). J comes from the model (datasheet/CAD), as in the seed.
+
+The positioning moves between runs are capped so that they cannot pass the limit lines on
+their own (:func:`_push_cap`): a host that stalls leaves the board holding the last command,
+so every command is at most what the axis can be held at for a whole stall (the serial
+board's watchdog while the rig is lent, ``STALL_S``) and then coast to rest on friction
+alone before the line — with the model's K, J and 0.8 of its friction.
 """
 
 from __future__ import annotations
@@ -36,6 +42,15 @@ MIN_MEASURE_S = 0.15
 RAMP_V_PER_S = 0.3
 TRAVEL_FRACTION = 0.85
 MAX_RUN_S = 1.0  # measured part of a run; long enough to average, short enough to be quick
+# The positioning moves: the longest host stall they must survive on their own (the serial
+# driver's board watchdog while an axis is lent, tracker.drivers.serial_motor.LENT_WATCHDOG_MS,
+# on a board that does not enforce limits: longer, and the board disarms and the axis coasts;
+# a board that enforces them brakes before its lines whatever the stall), the share of the
+# model's friction counted on to stop it, and a margin before the limit line for the encoder's
+# compliance and rounding.
+STALL_S = 0.2
+FRICTION_SHARE = 0.8
+LINE_MARGIN_RAD = 0.01
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,6 +160,43 @@ Reading = tuple[float, float]
 Sweep = Generator[float, Reading, "FrictionResult"]
 
 
+@dataclass(frozen=True, slots=True)
+class _Mover:
+    """What a positioning move must respect: the axis' K (N·m/V), J (kg·m²), model Coulomb
+    friction (N·m), the limit lines (rad) and the stall (s) it must survive."""
+
+    gain: float
+    inertia: float
+    coulomb: float
+    limits: tuple[float, float]
+    stall_s: float
+
+
+def _push_cap(mv: _Mover, speed_out: float, room: float, dt: float) -> float:
+    """The largest command (V, pushing outward; negative: the brake it needs) that keeps the
+    axis inside a line ``room`` rad away when it moves outward at ``speed_out`` rad/s.
+
+    Worst case: the command is held for the stall S (+ one sample), the board then disarms
+    and the axis coasts on friction alone at a_c = share·Coulomb/J. With the outward
+    acceleration a held: v·S + a·S²/2 + (v + a·S)²/(2·a_c) ≤ room, a quadratic in a whose larger
+    root is the cap; if even stopping within the stall overshoots (v·S/2 > room), the
+    deceleration that stops in the room. Then V = (J·a + share·c)/K: the viscous term is left
+    out (it falls as a braked axis slows, so counting today's b·v would overstate the brake),
+    and so only helps. An axis moving inward is taken as at rest (its inward travel and the
+    time it takes to turn only help).
+    """
+    v = max(speed_out, 0.0)
+    d = max(room - LINE_MARGIN_RAD, 1e-6)
+    s = mv.stall_s + dt
+    a_c = FRICTION_SHARE * mv.coulomb / mv.inertia
+    if v * s / 2 > d:
+        a = -v * v / (2 * d)
+    else:
+        c2, c1, c0 = s * s / (2 * a_c), s * s / 2 + v * s / a_c, v * s + v * v / (2 * a_c) - d
+        a = (-c1 + math.sqrt(max(c1 * c1 - 4 * c2 * c0, 0.0))) / (2 * c2)
+    return (mv.inertia * a + FRICTION_SHARE * mv.coulomb) / mv.gain
+
+
 class _Axis:
     """One axis as the sweep sees it: the latest reading, the sample count, cancel checks."""
 
@@ -167,20 +219,28 @@ class _Axis:
             th = yield from self.step(0.0)
         return th
 
-    def move_to(self, target_rad: float, gain: float, inertia: float,
-                max_s: float = 3.0) -> Generator[float, Reading, float]:
-        """PD move to ``target_rad`` (20 rad/s loop), then let it settle with 0 V."""
+    def move_to(self, target_rad: float, mv: _Mover, max_s: float = 4.0) -> Generator[float, Reading, float]:
+        """PD move to ``target_rad`` (20 rad/s loop), each command capped by :func:`_push_cap`
+        towards either line, then let it settle with 0 V. Velocity from the board's time stamps (a late
+        sample is not a fast axis)."""
         wn = 20.0
-        kp, kd = wn * wn * inertia / gain, 2 * 0.8 * wn * inertia / gain
+        kp, kd = wn * wn * mv.inertia / mv.gain, 2 * 0.8 * wn * mv.inertia / mv.gain
+        lo, hi = mv.limits
         th = prev = self.th
+        t_prev = self.t
         vel = 0.0
-        a = math.exp(-2 * math.pi * 50.0 * self.dt)
         still = 0
         for _ in range(int(round(max_s / self.dt))):
-            th = yield from self.step(kp * (target_rad - th) - kd * vel)
-            vel = a * vel + (1 - a) * (th - prev) / self.dt
+            u = kp * (target_rad - th) - kd * vel
+            up, down = _push_cap(mv, vel, hi - th, self.dt), _push_cap(mv, -vel, th - lo, self.dt)
+            # When the two cannot both hold (a fast axis near a line), the line it heads for wins.
+            u = min(max(u, -down), up) if vel >= 0 else max(min(u, up), -down)
+            th = yield from self.step(u)
+            span = self.t - t_prev if self.t > t_prev else self.dt
+            a = math.exp(-2 * math.pi * 50.0 * span)
+            vel = a * vel + (1 - a) * (th - prev) / span
             still = still + 1 if th == prev else 0
-            prev = th
+            prev, t_prev = th, self.t
             # Friction leaves a small steady error without integral action: near and still is done.
             if abs(target_rad - th) < 0.15 and still * self.dt > 0.02:
                 break
@@ -326,14 +386,25 @@ def friction_sweep(
     travel_rad: float | None = None,
     progress: Callable[[float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    *,
+    limits_rad: tuple[float, float] | None = None,
+    stall_s: float = STALL_S,
 ) -> Sweep:
     """The experiment of :func:`run_friction_id` as a generator (see ``Sweep``): ``dt`` the
     sample period (s), ``first`` the reading before the first sample; the other arguments as
-    there. Its return value (``StopIteration.value``) is the :class:`FrictionResult`."""
+    there. ``limits_rad``: the lines the positioning moves must never pass, even when the host
+    stalls for ``stall_s`` (default: ± the travel). Its return value (``StopIteration.value``)
+    is the :class:`FrictionResult`."""
     preset = get_preset(axis)
     gain = preset.gain_nm_per_v if gain_nm_per_v is None else float(gain_nm_per_v)
     inertia = preset.inertia_kg_m2 if inertia_kg_m2 is None else float(inertia_kg_m2)
-    end = TRAVEL_FRACTION * (preset.soft_limit_rad if travel_rad is None else float(travel_rad))
+    travel = preset.soft_limit_rad if travel_rad is None else float(travel_rad)
+    end = TRAVEL_FRACTION * travel
+    lines = (-travel, travel) if limits_rad is None else (float(limits_rad[0]), float(limits_rad[1]))
+    if not (lines[0] < -end and end < lines[1]) or not (math.isfinite(stall_s) and stall_s >= 0):
+        raise DataError(f"friction ID on {axis}: the limit lines {lines} must lie beyond the travel "
+                        f"±{end:.4f} rad and the stall {stall_s!r} s be >= 0")
+    mover = _Mover(gain, inertia, preset.coulomb_nm, lines, float(stall_s))
     ax = _Axis(axis, dt, first, cancel)
     total_runs = 2 * (voltages_per_direction + 1)
     done = 0
@@ -341,7 +412,7 @@ def friction_sweep(
     breakaway: dict[float, float] = {}
     step_rad = 1e-3
     for s in (1.0, -1.0):
-        yield from ax.move_to(-s * end, gain, inertia)
+        yield from ax.move_to(-s * end, mover)
         v_b = yield from _breakaway_volts(ax, s, 0.4 * preset.coulomb_nm / gain, step_rad)
         breakaway[s] = gain * v_b
         done += 1
@@ -351,7 +422,7 @@ def friction_sweep(
         speeds = np.linspace(0.1, 1.0, voltages_per_direction) * max_speed_rad_s
         for i in range(voltages_per_direction):
             volts = _next_voltage(mine, s, v_b, speeds[i], gain, i)
-            yield from ax.move_to(-s * end, gain, inertia)
+            yield from ax.move_to(-s * end, mover)
             target = abs(speeds[i])
             p_len = min(pulse_s, inertia * target / max(gain * SEED_PULSE_V, 1e-9))
             run_s = min(2 * end / max(target, 0.05) + 0.5, MAX_RUN_S)
