@@ -119,7 +119,8 @@ class SerialMotorDriver(FaultLatch):
         self._limits_dirty = True  # the board's limits to be (re)programmed
         self._board_limits: str | None = None  # BOARD_LIMITS, HOST_LIMITS, None before a connection
         self.board_limit_counts: dict[str, tuple[int, int]] | None = None
-        self._want_wd_ms = spec.watchdog_ms or 100
+        self._url_wd_ms = spec.watchdog_ms or 100  # the watchdog asked for, outside lending
+        self._want_wd_ms = self._url_wd_ms
         self._board_wd_ms: int | None = None
         self._link_lost_s = (float(link_lost_s) if link_lost_s is not None
                              else (spec.link_lost_ms or SERIAL_LINK_LOST_MS) / 1e3)
@@ -281,7 +282,7 @@ class SerialMotorDriver(FaultLatch):
         if lent is not None:
             self._u[lent[0]] = 0.0
         self._held_by = None
-        self._want_wd_ms = self.spec.watchdog_ms or 100
+        self._want_wd_ms = self._url_wd_ms
         if lent is not None:
             _, experiment, done = lent
             # From another thread while the loop's thread runs a step: that step is its last
@@ -314,7 +315,7 @@ class SerialMotorDriver(FaultLatch):
         self._lent = None
         self._u[axis] = 0.0
         self._held_by = None
-        self._want_wd_ms = self.spec.watchdog_ms or 100
+        self._want_wd_ms = self._url_wd_ms
         if not done.done():  # not already ended by hand_back from another thread
             if error is None:
                 done.set_result(result)
@@ -494,13 +495,13 @@ class SerialMotorDriver(FaultLatch):
         ``B`` leaves the limits to the host (shown in status); the link's errors propagate."""
         counts: dict[str, tuple[int, int]] = {}
         brake: list[int] = []
+        vmax_v = (self.hello.vmax_mv if self.hello else 10_000) / 1e3
         for a in AXES:
             rpc = self._rad_per_count[a]
             ref_c, ref_rad = self._ref[a]
             lo, hi = self._limits[a]
             counts[a] = (ref_c + math.ceil((lo + BOARD_INSET_RAD - ref_rad) / rpc - 1e-9),
                          ref_c + math.floor((hi - BOARD_INSET_RAD - ref_rad) / rpc + 1e-9))
-            vmax_v = (self.hello.vmax_mv if self.hello else 10_000) / 1e3
             brake.append(max(1, int(BRAKE_SHARE * self._accel_per_v[a] * vmax_v / rpc)))
         try:
             self._request("B", *brake, timeout_s=timeout_s)
