@@ -123,6 +123,8 @@ class Judged:
     established: str | None = None  # stiction: what the break-away from rest establishes alone
     # Held-out gains (one per half of the run) over a simpler look-alike, by its name (rank()).
     versus: dict[str, tuple[float, float]] = field(default_factory=dict)
+    # Why it is no larger than the log's slow disturbance makes of its torque (diagnose()).
+    within_disturbance: str | None = None
 
     def rank_key(self) -> tuple[bool, float]:
         """Significant first, then by the k-step gain: the simulation is the judge.
@@ -771,6 +773,8 @@ def finding(row: Judged, ctx: EvidenceContext) -> str | None:
     or an effect that is detectable but too small to matter. None when nothing."""
     if row.significant:
         return None
+    if row.within_disturbance is not None:
+        return "significant but small"
     if row.effect == "delay" and row.passed:
         samples = row.model.params["delay.seconds"] / ctx.sig.dt_s
         if MIN_DELAY_SAMPLES <= samples < MIN_DRIVE_DELAY_SAMPLES:
