@@ -43,9 +43,10 @@ from tracker.workbench.diagnose.judgement import (
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
 from tracker.workbench.diagnose.rests import analyse_rests, slow_residual_nm
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
+from tracker.workbench.diagnose.slow_disturbance import JUDGED_EFFECTS, SlowDisturbance, within_disturbance
 from tracker.workbench.diagnose.startlags import analyse_start_lags
 from tracker.workbench.measurements.data import Measurement
-from tracker.workbench.measurements.idim import encoder_timing_s, prepare_signals
+from tracker.workbench.measurements.idim import Signals, encoder_timing_s, prepare_signals
 
 FAR_OFF_RATIO = 2.0  # the current parameters are "far off" when a base refit halves the error
 # The finding of a candidate significant only with a latency the encoder does not resolve.
@@ -208,6 +209,8 @@ def diagnose(
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
     reconsider_backlash(rows, screens, ctx)  # a belt its refit by simulation rejected
     rank(rows, judge, ctx, screens)
+    if _judge_by_disturbance(rows, meas, base_model, sig, judge.k * judge.dt):
+        rank(rows, judge, ctx, screens)
 
     significant = [r.effect for r in rows if r.significant]
     candidates = [_candidate(r, ctx, significant) for r in rows]
@@ -218,6 +221,9 @@ def diagnose(
     notes = notes_for(candidates, ctx, verdict, compared=bool(told)) + told
     small = [(r.effect, negligible(r.effect, r.model, ctx)) for r in rows if r.passed and not r.significant]
     notes += tuple(f"{effect} is detectable but small: {why}" for effect, why in small if why)
+    notes += tuple(
+        f"{r.effect} is detectable but small: {r.within_disturbance}" for r in rows if r.within_disturbance
+    )
     far_off = refit_score.sse < current.sse and current.sse > FAR_OFF_RATIO * refit_score.sse
     if far_off:
         notes = (
@@ -266,6 +272,24 @@ def diagnose(
         dict(base_model.params),
         refit_score.fit_percent if far_off else None,
     )
+
+
+def _judge_by_disturbance(
+    rows: list[Judged], meas: Measurement, model: AxisModel, sig: Signals, horizon_s: float
+) -> bool:
+    """Set aside (in place) significant torque effects no larger than what the log's own slow
+    load disturbance makes of a torque of their shape (:mod:`.slow_disturbance`); True when any
+    was. The disturbance is read only when such a candidate is significant."""
+    judged = [r for r in rows if r.significant and r.effect in JUDGED_EFFECTS]
+    if not judged:
+        return False
+    slow = SlowDisturbance.read(meas, model, sig, horizon_s)
+    changed = False
+    for r in judged:
+        why = within_disturbance(r.effect, r.model, model, sig, slow)
+        if why is not None:
+            r.significant, r.within_disturbance, changed = False, why, True
+    return changed
 
 
 def _candidate(r: Judged, ctx: EvidenceContext, significant: list[str]) -> Candidate:
