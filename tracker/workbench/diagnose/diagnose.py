@@ -199,8 +199,10 @@ def diagnose(
         analyse_rests(sig, base_reg, base_model, sliding_coulomb),
         analyse_start_lags(sig, base_model, sliding_coulomb, slow_residual_nm(sig, base_reg)),
     )
-    # A second round judges a torque effect's share of the residual beyond the encoder's own.
-    sensor_sse = sensor_torque_sse(sig, base_reg) if present else 0.0
+    # A second round judges a torque effect's share of the residual beyond the encoder's own;
+    # not the first round's look again with its computational latency added (``refit_present``
+    # is then False: the user's model had no effects), whose bars stay those of a first round.
+    sensor_sse = sensor_torque_sse(sig, base_reg) if present and refit_present else 0.0
     rows = [
         judge_candidate(
             scr,

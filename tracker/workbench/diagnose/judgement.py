@@ -370,7 +370,7 @@ def _screen_gain(scr: Screen, ctx: EvidenceContext, present: bool, sensor_sse: f
     filter α itself and can explain sensor torque: they keep their own bars. The disturbance
     stays in the rest, so the bar is not lowered for it.
     """
-    if not present or scr.effect not in TORQUE_EFFECTS:
+    if not present or sensor_sse <= 0.0 or scr.effect not in TORQUE_EFFECTS:
         return scr.gain_cv
     base_sse = ctx.base_reg.sse_cv
     beyond = base_sse - sensor_sse
