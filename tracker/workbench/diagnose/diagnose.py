@@ -43,6 +43,7 @@ from tracker.workbench.diagnose.judgement import (
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
 from tracker.workbench.diagnose.rests import analyse_rests, slow_residual_nm
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
+from tracker.workbench.diagnose.sensor_floor import sensor_torque_sse
 from tracker.workbench.diagnose.slow_disturbance import JUDGED_EFFECTS, SlowDisturbance, within_disturbance
 from tracker.workbench.diagnose.startlags import analyse_start_lags
 from tracker.workbench.measurements.data import Measurement
@@ -199,8 +200,23 @@ def diagnose(
         analyse_rests(sig, base_reg, base_model, sliding_coulomb),
         analyse_start_lags(sig, base_model, sliding_coulomb, slow_residual_nm(sig, base_reg)),
     )
+    # A second round judges a torque effect's share of the residual beyond the encoder's own;
+    # not the first round's look again with its computational latency added (``refit_present``
+    # is then False: the user's model had no effects), whose bars stay those of a first round.
+    sensor_sse = sensor_torque_sse(sig, base_reg) if present and refit_present else 0.0
     rows = [
-        judge_candidate(scr, screens, judge, base_model, base_score, ctx, two_mass, cancel, present=present)
+        judge_candidate(
+            scr,
+            screens,
+            judge,
+            base_model,
+            base_score,
+            ctx,
+            two_mass,
+            cancel,
+            present=present,
+            sensor_sse=sensor_sse,
+        )
         for scr in screens.values()
     ]
     step(0.7)
