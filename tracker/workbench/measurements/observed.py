@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from tracker.errors import DataError
 from tracker.plant.model import AxisModel
-from tracker.plant.simulate import STATE_SIZE, advance, pack_params, predict_windows
+from tracker.plant.simulate import pack_params, predict_windows, step_state
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.states import OBSERVER_BANDWIDTH_HZ, StateEstimate
 
@@ -51,33 +51,29 @@ def _observed_windows(
     n = y.shape[0]
     out = np.empty((m, horizon))
     sse = 0.0
-    x = np.empty(STATE_SIZE)
-    x[0] = y[0]
-    x[1] = 0.0
-    x[2] = y[0]
-    x[3] = 0.0
-    xw = np.empty(STATE_SIZE)
+    # The states live in scalars (registers): see step_state.
+    x0, x1, x2, x3 = y[0], 0.0, y[0], 0.0
     k = 0
     for w in range(m):
         s = starts[w]
         while k < s:
-            innov = y[k] - x[0]
-            x[0] += l_pos * innov
-            x[1] += l_vel * innov
-            advance(x, P_obs, u, k, dt, 0.0)
+            innov = y[k] - x0
+            x0 += l_pos * innov
+            x1 += l_vel * innov
+            x0, x1, x2, x3 = step_state(x0, x1, x2, x3, P_obs, u, k, dt, 0.0)
             k += 1
-        # The observer's correction at sample s touches only the motor side: x[2:] is its
+        # The observer's correction at sample s touches only the motor side: x2, x3 are its
         # load estimate at s.
-        xw[0] = motor0[w, 0]
-        xw[1] = motor0[w, 1]
-        xw[2] = x[2]
-        xw[3] = (x[3] + load_shift[w, 0]) - load_shift[w, 1]
+        w0 = motor0[w, 0]
+        w1 = motor0[w, 1]
+        w2 = x2
+        w3 = (x3 + load_shift[w, 0]) - load_shift[w, 1]
         for i in range(horizon):
-            out[w, i] = xw[0]
+            out[w, i] = w0
             if i > 0 and s + i < n:
-                e = y[s + i] - xw[0]
+                e = y[s + i] - w0
                 sse += e * e
-            advance(xw, P_win, u, s + i, dt, 0.0)
+            w0, w1, w2, w3 = step_state(w0, w1, w2, w3, P_win, u, s + i, dt, 0.0)
         if sse > abandon_sse:
             return out, w + 1
     return out, m
