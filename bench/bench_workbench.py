@@ -74,7 +74,7 @@ def speed(meas: Measurement) -> None:
     base = start_model(("offset",))
     threads = os.environ.get("OPENBLAS_NUM_THREADS", "unset")
     print(f"== speed: 30 s at 1 kHz, pan + offset, closed loop (OPENBLAS_NUM_THREADS={threads}) ==")
-    print(f"(median of 3 after a warm-up; wall and CPU: the load average is {load_average()} on this machine)")
+    print(f"(median of 3 after a warm-up, wall and CPU; load average {load_average()} on this machine)")
     timed_line("fit (k-step, default horizon)", lambda: fit_model(meas, base), target=True)
     timed_line("fit (inverse dynamics only)", lambda: fit_model(meas, base, method="inverse_dynamics"))
     timed_line("compare (k-step, with breakdown)", lambda: compare_model(meas, base))
@@ -95,7 +95,9 @@ def two_mass_speed() -> None:
         true = AxisModel.for_axis("pan", ("quantization", effect), RECOVERY[effect])
         meas = closed_loop_log(true, duration_s=30.0, seed=11, disturbance_nm=0.0005)
         start = start_model((effect,))
-        timed_line(f"fit two-mass (+ {effect})", lambda: fit_model(meas, start), target=True)
+        timed_line(
+            f"fit two-mass (+ {effect})", lambda m=meas, s=start: fit_model(m, s), target=True
+        )
 
 
 def diagnose_hook(meas: Measurement) -> None:
