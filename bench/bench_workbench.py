@@ -95,9 +95,7 @@ def two_mass_speed() -> None:
         true = AxisModel.for_axis("pan", ("quantization", effect), RECOVERY[effect])
         meas = closed_loop_log(true, duration_s=30.0, seed=11, disturbance_nm=0.0005)
         start = start_model((effect,))
-        timed_line(
-            f"fit two-mass (+ {effect})", lambda m=meas, s=start: fit_model(m, s), target=True
-        )
+        timed_line(f"fit two-mass (+ {effect})", lambda m=meas, s=start: fit_model(m, s), target=True)
 
 
 def diagnose_hook(meas: Measurement) -> None:
