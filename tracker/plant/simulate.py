@@ -270,8 +270,10 @@ def step_state(
     ``dist_nm`` is an external torque on the load over the step.
 
     Hot: the compiled loops call it once a sample per candidate model. The state is passed as
-    scalars and ``P`` is read into locals once, so the helpers get floats: every array handed
-    to an inlined helper costs a reference count in and out (about 5x the arithmetic here).
+    scalars and ``P`` is read into locals once, so the helpers get floats: with the state in an
+    array and ``P``/``u`` handed to every helper, a step took 1.9x as long (numba counts the
+    references of array arguments and does not always drop the counting; a caller compiled
+    without reference counting, ``measurements/observed.py``, gains another 1.45x).
     """
     n_sub = int(P[I_NSUB])
     h = dt / n_sub
