@@ -24,11 +24,22 @@ _PLANT = _HERE.parent / "plant" / "simulate.py"
 # keep their compiled code after plant/simulate.py changed.
 purge_stale_cache(
     cache_dir_for(_HERE / "experiments"),
-    (_PLANT, _HERE / "experiments" / "experiments.py"),
-    ("experiments.",),
+    (_PLANT, _HERE / "experiments" / "experiments.py", _HERE / "experiments" / "excite.py"),
+    ("experiments.", "excite."),
 )
 purge_stale_cache(
     cache_dir_for(_HERE / "diagnose"),
     (_PLANT, _HERE / "diagnose" / "kstep.py"),
     ("kstep.",),
+)
+# The two-mass observer pass and the comparison's simulations inline it too.
+purge_stale_cache(
+    cache_dir_for(_HERE / "measurements"),
+    (_PLANT, _HERE / "measurements" / "observed.py"),
+    ("observed.",),
+)
+purge_stale_cache(
+    cache_dir_for(_HERE / "compare"),
+    (_PLANT, _HERE / "compare" / "compare.py", _HERE / "compare" / "floor.py"),
+    ("compare.", "floor."),
 )
