@@ -7,15 +7,7 @@ half is never run here. The pair tests failed before their fix (the second round
 
 from __future__ import annotations
 
-from functools import cache
-from typing import Any
-
-import tests.truthgen.matrix as matrix
-from tests.truthgen.matrix import generate_case
-from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.diagnose import Diagnosis, diagnose
-from tracker.workbench.fit.fit import fit_model
-from tracker.workbench.measurements.data import Measurement
+from tests.tracker.workbench.diagnose.two_rounds import two_rounds as _two_rounds
 
 EQUIVALENT = {"offset": "coulomb_asymmetry", "coulomb_asymmetry": "offset"}
 
@@ -25,23 +17,6 @@ def _named(verdict: str | None, effect: str) -> bool:
 
 
 FRESH_SEED = 9191  # a blind set of its own, never tuned on (bench/blind_matrix.py generate)
-
-
-@cache
-def _two_rounds(case_id: str, seed: int | None = None) -> tuple[dict[str, Any], Diagnosis, Diagnosis | None]:
-    """The case's truth, the first diagnosis and the diagnosis of the model fitted with its verdict."""
-    if seed is None:
-        log, truth = generate_case(case_id)
-    else:
-        with matrix.seeded(seed):
-            log, truth = matrix.generate_case(case_id)
-    meas = Measurement(log.t, log.u, log.theta, str(truth["id"]))
-    axis, gain = str(truth["axis"]), float(truth["gain_nm_per_v"])
-    first = diagnose(meas, AxisModel.for_axis(axis, gain_nm_per_v=gain))  # type: ignore[arg-type]
-    if first.verdict is None:
-        return truth, first, None
-    model = AxisModel.for_axis(axis, (first.verdict,), gain_nm_per_v=gain)  # type: ignore[arg-type]
-    return truth, first, diagnose(meas, fit_model(meas, model).model)
 
 
 def test_gravity_is_found_after_a_direction_dependent_friction_took_its_bias() -> None:

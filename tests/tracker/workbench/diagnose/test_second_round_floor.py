@@ -10,15 +10,14 @@ them, diagnose, ``fit --effects <verdict>``, diagnose the fitted model.
 
 from __future__ import annotations
 
-from functools import cache
 from typing import Any
 
 import tests.truthgen.matrix as matrix
+from tests.tracker.workbench.diagnose.two_rounds import two_rounds
 from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.diagnose import Diagnosis, diagnose
+from tracker.workbench.diagnose.diagnose import Diagnosis
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign
 from tracker.workbench.diagnose.sensor_floor import sensor_torque_sse
-from tracker.workbench.fit.fit import fit_model
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.idim import prepare_signals
 
@@ -53,17 +52,8 @@ def test_the_sensor_floor_stays_under_a_right_model_residual_with_disturbance() 
         assert 0.3 * residual < floor < 0.95 * residual, (case_id, floor, residual)
 
 
-@cache
 def _two_rounds(case_id: str) -> tuple[dict[str, Any], Diagnosis, Diagnosis | None]:
-    with matrix.seeded(TRACED_SEED):
-        log, truth = matrix.generate_case(case_id)
-    meas = Measurement(log.t, log.u, log.theta, str(truth["id"]))
-    axis, gain = str(truth["axis"]), float(truth["gain_nm_per_v"])
-    first = diagnose(meas, AxisModel.for_axis(axis, gain_nm_per_v=gain))  # type: ignore[arg-type]
-    if first.verdict is None:
-        return truth, first, None
-    model = AxisModel.for_axis(axis, (first.verdict,), gain_nm_per_v=gain)  # type: ignore[arg-type]
-    return truth, first, diagnose(meas, fit_model(meas, model).model)
+    return two_rounds(case_id, TRACED_SEED)
 
 
 def test_a_ripple_under_a_coarse_encoder_is_found_after_the_delay() -> None:
