@@ -180,6 +180,40 @@ def _effect_only(scr: Screen) -> Screen:
     )
 
 
+def _torque_terms_only(scr: Screen, base: AxisModel) -> Screen | None:
+    """``scr`` without the regression's values of the present effects that act through the
+    simulation (a second round), or None when it has none.
+
+    The torque regression measures what acts on the moving axis — the rigid body and torques
+    of position or direction — but not what acts at rest or through the command: a present
+    static friction's break-away is barely seen by moving data (the axis leaves the Stribeck
+    zone within a few ms), so the regression's joint value is a guess that the present
+    structure's refit by simulation knows better. Each parameter is taken from the stage that
+    measures it: the base and the new effect from the regression, the present stiction (delay,
+    clip) from the k-step refit (a dead band or a belt keeps its own second round). Without this, a second round chose between
+    the regression's joint values with a wrong break-away (stiction+gravity: 0.070 N·m against
+    0.100 true and 0.121 refitted) and the new effect alone on a base whose inertia and
+    viscous friction had absorbed the missing torque (twice and twenty times the truth).
+    """
+    dropped = [e for e in base.effects if e not in TORQUE_EFFECTS]
+    if not dropped:
+        return None
+    kept = {k: v for k, v in scr.params.items() if k.split(".")[0] not in dropped}
+    if len(kept) == len(scr.params):
+        return None
+    return Screen(
+        scr.effect,
+        scr.structure,
+        scr.regression,
+        kept,
+        scr.stderr,
+        scr.gain_cv,
+        scr.p_value,
+        scr.folds_improve,
+        scr.detail,
+    )
+
+
 def _centred(scr: Screen, base: AxisModel) -> Screen:
     """For an asymmetry: split the regression's difference between the directions evenly around
     the base model's value (which averaged the two directions before the asymmetry was known)."""
@@ -245,6 +279,9 @@ def judge_candidate(
     # Another missing effect can bias the regression's J, b, Fc (a delay shrinks the apparent
     # inertia): also try the effect alone on the base model's values, keep the better.
     variants = [_effect_only(scr)]
+    torque_terms = _torque_terms_only(scr, base_model) if present else None
+    if torque_terms is not None:
+        variants.append(torque_terms)
     if scr.effect in ("coulomb_asymmetry", "viscous_asymmetry"):
         variants.append(_centred(scr, base_model))
     for variant in variants:
