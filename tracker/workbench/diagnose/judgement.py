@@ -190,10 +190,11 @@ def _torque_terms_only(scr: Screen, base: AxisModel) -> Screen | None:
     zone within a few ms), so the regression's joint value is a guess that the present
     structure's refit by simulation knows better. Each parameter is taken from the stage that
     measures it: the base and the new effect from the regression, the present stiction (delay,
-    clip) from the k-step refit (a dead band or a belt keeps its own second round). Without this, a second round chose between
-    the regression's joint values with a wrong break-away (stiction+gravity: 0.070 N·m against
-    0.100 true and 0.121 refitted) and the new effect alone on a base whose inertia and
-    viscous friction had absorbed the missing torque (twice and twenty times the truth).
+    clip) from the k-step refit (a dead band or a belt keeps its own second round). Without
+    this, a second round chose between the regression's joint values with a wrong break-away
+    (stiction+gravity: 0.070 N·m against 0.100 true and 0.121 refitted) and the new effect
+    alone on a base whose inertia and viscous friction had absorbed the missing torque (twice
+    and twenty times the truth).
     """
     dropped = [e for e in base.effects if e not in TORQUE_EFFECTS]
     if not dropped:
@@ -264,6 +265,7 @@ def judge_candidate(
     cancel: Callable[[], bool] | None,
     present: bool = False,
     sensor_sse: float = 0.0,
+    second_round: bool = False,
 ) -> Judged:
     """Build the candidate model of ``scr``'s effect and decide whether it is significant.
 
@@ -271,7 +273,9 @@ def judge_candidate(
     structure refitted by simulation (:func:`refit_present_structure`), and a torque effect the
     screening supports is also refitted by simulation together with it (:func:`_refit_jointly`);
     its screening share is then judged beyond ``sensor_sse``, the encoder's own part of the
-    residual torque (:func:`_screen_gain`).
+    residual torque (:func:`_screen_gain`). ``second_round``: the user's model had effects (not
+    the first round's look again with a computational latency added): the candidate is also
+    tried with each parameter from the stage that measures it (:func:`_torque_terms_only`).
     """
     effect = scr.effect
     cand = _candidate_model(base_model, scr, ctx)
@@ -279,7 +283,7 @@ def judge_candidate(
     # Another missing effect can bias the regression's J, b, Fc (a delay shrinks the apparent
     # inertia): also try the effect alone on the base model's values, keep the better.
     variants = [_effect_only(scr)]
-    torque_terms = _torque_terms_only(scr, base_model) if present else None
+    torque_terms = _torque_terms_only(scr, base_model) if present and second_round else None
     if torque_terms is not None:
         variants.append(torque_terms)
     if scr.effect in ("coulomb_asymmetry", "viscous_asymmetry"):
