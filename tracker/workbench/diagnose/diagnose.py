@@ -216,6 +216,7 @@ def diagnose(
             cancel,
             present=present,
             sensor_sse=sensor_sse,
+            second_round=present and refit_present,
         )
         for scr in screens.values()
     ]
