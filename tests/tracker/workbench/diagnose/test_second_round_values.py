@@ -14,30 +14,18 @@ a user makes the rounds: diagnose, ``fit --effects <verdict>``, diagnose the fit
 
 from __future__ import annotations
 
-from functools import cache
 from typing import Any
 
 import pytest
 
-import tests.truthgen.matrix as matrix
-from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.diagnose import Diagnosis, diagnose
-from tracker.workbench.fit.fit import fit_model
-from tracker.workbench.measurements.data import Measurement
+from tests.tracker.workbench.diagnose.two_rounds import second_round
+from tracker.workbench.diagnose.diagnose import Diagnosis
 
 TRACED_SEED = 9393
 
 
-@cache
 def _second_round(case_id: str, first_verdict: str) -> tuple[dict[str, Any], Diagnosis]:
-    """The truth and the second round's diagnosis after fitting ``first_verdict`` (the first
-    round's verdict on this log, which the scorer's run recorded; not rerun here)."""
-    with matrix.seeded(TRACED_SEED):
-        log, truth = matrix.generate_case(case_id)
-    meas = Measurement(log.t, log.u, log.theta, str(truth["id"]))
-    axis, gain = str(truth["axis"]), float(truth["gain_nm_per_v"])
-    model = AxisModel.for_axis(axis, (first_verdict,), gain_nm_per_v=gain)  # type: ignore[arg-type]
-    return truth, diagnose(meas, fit_model(meas, model).model)
+    return second_round(case_id, first_verdict, TRACED_SEED)
 
 
 @pytest.mark.slow

@@ -31,3 +31,15 @@ def two_rounds(case_id: str, seed: int | None = None) -> tuple[dict[str, Any], D
         return truth, first, None
     model = AxisModel.for_axis(axis, (first.verdict,), gain_nm_per_v=gain)  # type: ignore[arg-type]
     return truth, first, diagnose(meas, fit_model(meas, model).model)
+
+
+@cache
+def second_round(case_id: str, first_verdict: str, seed: int) -> tuple[dict[str, Any], Diagnosis]:
+    """The truth and the second round's diagnosis after fitting ``first_verdict`` (the first
+    round's verdict on this log, as a scorer's run recorded it; not rerun)."""
+    with matrix.seeded(seed):
+        log, truth = matrix.generate_case(case_id)
+    meas = Measurement(log.t, log.u, log.theta, str(truth["id"]))
+    axis, gain = str(truth["axis"]), float(truth["gain_nm_per_v"])
+    model = AxisModel.for_axis(axis, (first_verdict,), gain_nm_per_v=gain)  # type: ignore[arg-type]
+    return truth, diagnose(meas, fit_model(meas, model).model)
