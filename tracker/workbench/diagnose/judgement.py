@@ -548,11 +548,17 @@ def judge_against_refitted_base(
     if not todo:
         return False
     fair, fair_score = refit_present_structure(judge, base_model, base_score, cancel)
-    if fair_score.sse > (1.0 - MIN_KSTEP_GAIN) * base_score.sse:
-        return False
+    rigid_off = fair_score.sse <= (1.0 - MIN_KSTEP_GAIN) * base_score.sse
     changed = False
     for r in todo:
-        if r.effect in TORQUE_EFFECTS:
+        if r.effect == "delay" and not base_model.has("delay"):
+            # What no drive delay is, refitted too: the latency and when in the period the
+            # encoder is read (up to MIN_DRIVE_DELAY_SAMPLES), with the rigid body.
+            lag, lag_score = _latency_refitted(judge, base_model, cancel)
+            ok = _kstep_ok(r.effect, judge.compare(lag_score, r.score))
+        elif not rigid_off:
+            continue
+        elif r.effect in TORQUE_EFFECTS:
             _, score = _refit_jointly(judge, fair, r.model, cancel)
             cmp = judge.compare(fair_score, score)
             ok = min(judge.half_gains(fair_score, score)) >= MIN_HALF_GAIN_JOINT and _kstep_ok(r.effect, cmp)
@@ -562,6 +568,22 @@ def judge_against_refitted_base(
             r.passed = r.significant = False
             changed = True
     return changed
+
+
+def _latency_refitted(
+    judge: KStepJudge, base_model: AxisModel, cancel: Callable[[], bool] | None
+) -> tuple[AxisModel, KStepScore]:
+    """The base with a delay of at most :data:`MIN_DRIVE_DELAY_SAMPLES` (a computational
+    latency and the encoder's read timing: no drive delay), refitted by simulation with the rest."""
+    most = MIN_DRIVE_DELAY_SAMPLES * judge.dt
+    start = with_values(base_model, {"delay.seconds": judge.dt}, add="delay")
+    fitted, _ = refine(judge, start, start.free_param_names(), cancel=cancel)
+    if fitted.params["delay.seconds"] > most:
+        held = with_values(fitted, {"delay.seconds": most})
+        names = [k for k in held.free_param_names() if k != "delay.seconds"]
+        fitted, _ = refine(judge, held, names, cancel=cancel)
+    best = min((fitted, start), key=lambda m: judge.score(m).sse)
+    return best, judge.score(best)
 
 
 def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:
