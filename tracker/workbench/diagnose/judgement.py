@@ -552,10 +552,12 @@ def judge_against_refitted_base(
     changed = False
     for r in todo:
         if r.effect == "delay" and not base_model.has("delay"):
-            # What no drive delay is, refitted too: the latency and when in the period the
-            # encoder is read (up to MIN_DRIVE_DELAY_SAMPLES), with the rigid body.
-            lag, lag_score = _latency_refitted(judge, base_model, cancel)
-            ok = _kstep_ok(r.effect, judge.compare(lag_score, r.score))
+            # The rigid body and a delay refitted together by the judge from one sample: when
+            # the delay settles under MIN_DRIVE_DELAY_SAMPLES (a latency, when in the period the
+            # encoder is read, friction's pre-sliding lag), the candidate's longer one must
+            # beat that refit by the k-step margin.
+            lag_score = _latency_refitted(judge, base_model, cancel)
+            ok = lag_score is None or _kstep_ok(r.effect, judge.compare(lag_score, r.score))
         elif not rigid_off:
             continue
         elif r.effect in TORQUE_EFFECTS:
@@ -572,18 +574,15 @@ def judge_against_refitted_base(
 
 def _latency_refitted(
     judge: KStepJudge, base_model: AxisModel, cancel: Callable[[], bool] | None
-) -> tuple[AxisModel, KStepScore]:
-    """The base with a delay of at most :data:`MIN_DRIVE_DELAY_SAMPLES` (a computational
-    latency and the encoder's read timing: no drive delay), refitted by simulation with the rest."""
-    most = MIN_DRIVE_DELAY_SAMPLES * judge.dt
+) -> KStepScore | None:
+    """The score of the base with a delay refitted by simulation with the rest, from one
+    sample; None when the refit puts the delay at :data:`MIN_DRIVE_DELAY_SAMPLES` or more (the
+    judge's own estimate is then a drive delay)."""
     start = with_values(base_model, {"delay.seconds": judge.dt}, add="delay")
     fitted, _ = refine(judge, start, start.free_param_names(), cancel=cancel)
-    if fitted.params["delay.seconds"] > most:
-        held = with_values(fitted, {"delay.seconds": most})
-        names = [k for k in held.free_param_names() if k != "delay.seconds"]
-        fitted, _ = refine(judge, held, names, cancel=cancel)
-    best = min((fitted, start), key=lambda m: judge.score(m).sse)
-    return best, judge.score(best)
+    if fitted.params["delay.seconds"] >= MIN_DRIVE_DELAY_SAMPLES * judge.dt:
+        return None
+    return min(judge.score(fitted), judge.score(start), key=lambda sc: sc.sse)
 
 
 def reconsider_backlash(rows: list[Judged], screens: Mapping[str, Screen], ctx: EvidenceContext) -> None:
