@@ -31,6 +31,7 @@ from tracker.workbench.diagnose.judgement import (
     TORQUE_EFFECTS,
     Judged,
     finding,
+    judge_against_refitted_base,
     judge_candidate,
     look_alike_notes,
     negligible,
@@ -226,6 +227,13 @@ def diagnose(
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
     reconsider_backlash(rows, screens, ctx)  # a belt its refit by simulation rejected
     rank(rows, judge, ctx, screens)
+    refitted = present and refit_present
+    if (
+        not refitted
+        and not two_mass
+        and judge_against_refitted_base(rows, judge, base_model, base_score, cancel)
+    ):
+        rank(rows, judge, ctx, screens)
     if _judge_by_disturbance(rows, meas, base_model, sig, judge.k * judge.dt):
         rank(rows, judge, ctx, screens)
 
