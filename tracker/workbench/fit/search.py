@@ -259,8 +259,14 @@ def _grid_with_cost(
     prm = get_param(name)
     best = model
     best_cost = window_cost(meas, est, model, k, stride) if model_cost is None else model_cost
+    # A value clipped to a bound (a fine grid around a stiff belt at 300 Hz) or the model's own
+    # is judged once: the same candidate again can only tie, and a tie never replaces the best.
+    seen = {model.params[name]}
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
+        if v in seen:
+            continue
+        seen.add(v)
         cand = replace_params(model, {name: v})
         cost = window_cost(meas, est, cand, k, stride, best_cost)
         if cost < best_cost:
