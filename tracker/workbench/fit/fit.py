@@ -59,6 +59,8 @@ PROBE_STRIDE = 4
 # worse after its base parameters were refitted once or twice is not where the answer is).
 PROBE_SCREEN_EVALUATIONS = 6
 PROBE_KEEP_RATIO = 1.5
+# Screens that end this close (every scaled coordinate, relative) are one basin: one trial.
+SAME_POINT_TOLERANCE = 0.02
 # Short fits from rival minima (a checked delay), and the z a rival's excess cost must reach
 # to be rejected (two-sided 95 %).
 RIVAL_EVALUATIONS = 8
@@ -481,6 +483,13 @@ def _diff_step(name: str) -> float:
     return DIFF_STEP
 
 
+def _same_point(a: FloatArray, b: FloatArray) -> bool:
+    """Whether two optimizer points agree within SAME_POINT_TOLERANCE in every scaled
+    coordinate (relative to its size, or absolutely near zero)."""
+    tol = SAME_POINT_TOLERANCE * np.maximum(np.maximum(np.abs(a), np.abs(b)), 1.0)
+    return bool(np.all(np.abs(a - b) <= tol))
+
+
 def _at_a_bound(coords: _Coords, x: FloatArray) -> bool:
     """Whether a hidden-state parameter (belt frequency or damping, backlash width) ended within
     1 % of a catalogue bound: a start whose short fit runs there has left the model's domain (a
@@ -638,15 +647,27 @@ def fit_model(
         x_starts = [coords.encode(cand) for cand in (model0, *start.alternatives)]
         screened = [short_fit(x, PROBE_SCREEN_EVALUATIONS) for x in x_starts]
         best_screen = min(t.cost for t in screened)
-        trials = []
-        for x, first in zip(x_starts, screened, strict=True):
-            if first.cost > PROBE_KEEP_RATIO * best_screen:
-                continue
-            # A screen that used up its evaluations is run again in full (the same trial as
-            # without the screen); one that converged within them already is that trial.
-            trial = short_fit(x, PROBE_EVALUATIONS) if first.status == 0 else first
-            trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
-        x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
+        # Survivors of the screen, best first, one per basin: starts whose screens ended at the
+        # same point (two starts in one basin, e.g. the same resonance from two sets of base
+        # values) would only repeat each other's trial.
+        kept: list[Any] = []
+        for first in sorted(screened, key=lambda t: t.cost):
+            if first.cost <= PROBE_KEEP_RATIO * best_screen and not any(
+                _same_point(first.x, o.x) for o in kept
+            ):
+                kept.append(first)
+        if len(kept) == 1:
+            # One basin left: the final fit goes on from where its screen stopped.
+            x0 = kept[0].x
+        else:
+            trials = []
+            for first in kept:
+                # A screen that used up its evaluations goes on for the rest of a trial's;
+                # one that converged within them already is that trial.
+                more = PROBE_EVALUATIONS - PROBE_SCREEN_EVALUATIONS
+                trial = short_fit(first.x, more) if first.status == 0 else first
+                trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
+            x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
     sol = solve(x0)
     if "backlash.width" in coords.names:
         # The width's cost is step-like; the first pass moved the other parameters. Search the
