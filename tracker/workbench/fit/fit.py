@@ -59,6 +59,9 @@ PROBE_STRIDE = 4
 # worse after its base parameters were refitted once or twice is not where the answer is).
 PROBE_SCREEN_EVALUATIONS = 6
 PROBE_KEEP_RATIO = 1.5
+# A screen is stopped when, at its last rate of improvement, it would still end this many
+# times beyond the keep ratio of the best screen so far (:class:`_HopelessScreen`).
+SCREEN_HOPELESS_MARGIN = 10.0
 # Screens that end this close (every scaled coordinate, relative) are one basin: one trial.
 SAME_POINT_TOLERANCE = 0.02
 # Short fits from rival minima (a checked delay), and the z a rival's excess cost must reach
@@ -483,6 +486,34 @@ def _diff_step(name: str) -> float:
     return DIFF_STEP
 
 
+@dataclass(slots=True)
+class _HopelessScreen:
+    """A screen's ``least_squares`` callback: stops a screen that cannot survive.
+
+    After each iteration the screen's cost is extrapolated at its last rate of improvement
+    over the evaluations it has left; when even that ends more than SCREEN_HOPELESS_MARGIN
+    times beyond the keep ratio of the best finished screen (``bar``), it stops (a stiff belt
+    whose cost moves 2 % an iteration, 450 times above the resonance's, took a quarter of
+    the fit). Screens that fall steeply (250 times above the bar, then halving each
+    iteration) run on.
+    """
+
+    last_cost: float
+    bar: float
+    evaluations: int
+
+    def __call__(self, intermediate_result: Any) -> None:
+        cost = float(intermediate_result.cost)
+        left = self.evaluations - int(intermediate_result.nfev)
+        rate = self.last_cost / cost if cost > 0.0 else math.inf
+        self.last_cost = cost
+        if left <= 0 or not math.isfinite(self.bar) or not rate < 1e6:
+            return
+        projected = cost / max(rate, 1.0) ** left
+        if projected > SCREEN_HOPELESS_MARGIN * PROBE_KEEP_RATIO * self.bar:
+            raise StopIteration
+
+
 def _same_point(a: FloatArray, b: FloatArray) -> bool:
     """Whether two optimizer points agree within SAME_POINT_TOLERANCE in every scaled
     coordinate (relative to its size, or absolutely near zero)."""
@@ -633,19 +664,30 @@ def fit_model(
         # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
         # base parameters not yet refitted. A short fit from each on a quarter of the windows,
         # then the full fit from the best.
-        def short_fit(x: FloatArray, evaluations: int) -> Any:
+        def short_fit(x: FloatArray, evaluations: int, hopeless: _HopelessScreen | None = None) -> Any:
+            def fun(x_: FloatArray) -> FloatArray:
+                r = probe(x_)
+                if hopeless is not None and math.isnan(hopeless.last_cost):
+                    hopeless.last_cost = 0.5 * float(r @ r)  # the start's (the first evaluation)
+                return r
+
             return least_squares(
-                probe,
+                fun,
                 x,
                 bounds=(coords.lower, coords.upper),
                 method="trf",
                 x_scale=1.0,
                 diff_step=steps,
                 max_nfev=evaluations,
+                callback=hopeless,
             )
 
         x_starts = [coords.encode(cand) for cand in (model0, *start.alternatives)]
-        screened = [short_fit(x, PROBE_SCREEN_EVALUATIONS) for x in x_starts]
+        screened: list[Any] = []
+        for x in x_starts:
+            bar = min((t.cost for t in screened), default=math.inf)
+            hopeless = _HopelessScreen(math.nan, bar, PROBE_SCREEN_EVALUATIONS)
+            screened.append(short_fit(x, PROBE_SCREEN_EVALUATIONS, hopeless))
         best_screen = min(t.cost for t in screened)
         # Survivors of the screen, best first, one per basin: starts whose screens ended at the
         # same point (two starts in one basin, e.g. the same resonance from two sets of base
