@@ -514,6 +514,17 @@ class _HopelessScreen:
             raise StopIteration
 
 
+@dataclass(frozen=True, slots=True)
+class _StopAtBound:
+    """A trial's ``least_squares`` callback: stops it on a hidden-state bound (:func:`_at_a_bound`)."""
+
+    coords: _Coords
+
+    def __call__(self, intermediate_result: Any) -> None:
+        if _at_a_bound(self.coords, np.asarray(intermediate_result.x)):
+            raise StopIteration
+
+
 def _same_point(a: FloatArray, b: FloatArray) -> bool:
     """Whether two optimizer points agree within SAME_POINT_TOLERANCE in every scaled
     coordinate (relative to its size, or absolutely near zero)."""
@@ -664,7 +675,9 @@ def fit_model(
         # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
         # base parameters not yet refitted. A short fit from each on a quarter of the windows,
         # then the full fit from the best.
-        def short_fit(x: FloatArray, evaluations: int, hopeless: _HopelessScreen | None = None) -> Any:
+        def short_fit(x: FloatArray, evaluations: int, callback: Callable[[Any], None] | None = None) -> Any:
+            hopeless = callback if isinstance(callback, _HopelessScreen) else None
+
             def fun(x_: FloatArray) -> FloatArray:
                 r = probe(x_)
                 if hopeless is not None and math.isnan(hopeless.last_cost):
@@ -679,7 +692,7 @@ def fit_model(
                 x_scale=1.0,
                 diff_step=steps,
                 max_nfev=evaluations,
-                callback=hopeless,
+                callback=callback,
             )
 
         x_starts = [coords.encode(cand) for cand in (model0, *start.alternatives)]
@@ -702,12 +715,17 @@ def fit_model(
             # One basin left: the final fit goes on from where its screen stopped.
             x0 = kept[0].x
         else:
-            trials = []
+            trials: list[tuple[bool, float, FloatArray]] = []
             for first in kept:
                 # A screen that used up its evaluations goes on for the rest of a trial's;
                 # one that converged within them already is that trial.
                 more = PROBE_EVALUATIONS - PROBE_SCREEN_EVALUATIONS
-                trial = short_fit(first.x, more) if first.status == 0 else first
+                # Once a trial has finished inside the model's domain, one that runs onto a
+                # hidden-state bound has lost whatever its cost (:func:`_at_a_bound`): it stops
+                # there (a belt damping run to its bound of 2 needs many sub-steps a sample).
+                inside = any(not t[0] for t in trials)
+                stop = _StopAtBound(coords) if inside else None
+                trial = short_fit(first.x, more, stop) if first.status == 0 else first
                 trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
             x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
     sol = solve(x0)
