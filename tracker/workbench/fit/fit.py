@@ -59,6 +59,11 @@ PROBE_STRIDE = 4
 # worse after its base parameters were refitted once or twice is not where the answer is).
 PROBE_SCREEN_EVALUATIONS = 6
 PROBE_KEEP_RATIO = 1.5
+# A screen is stopped when, at its last rate of improvement, it would still end this many
+# times beyond the keep ratio of the best screen so far (:class:`_HopelessScreen`).
+SCREEN_HOPELESS_MARGIN = 10.0
+# Screens that end this close (every scaled coordinate, relative) are one basin: one trial.
+SAME_POINT_TOLERANCE = 0.02
 # Short fits from rival minima (a checked delay), and the z a rival's excess cost must reach
 # to be rejected (two-sided 95 %).
 RIVAL_EVALUATIONS = 8
@@ -481,6 +486,52 @@ def _diff_step(name: str) -> float:
     return DIFF_STEP
 
 
+@dataclass(slots=True)
+class _HopelessScreen:
+    """A screen's ``least_squares`` callback: stops a screen that cannot survive.
+
+    After each iteration the screen's cost is extrapolated at its last rate of improvement
+    over the evaluations it has left; when even that ends more than SCREEN_HOPELESS_MARGIN
+    times beyond the keep ratio of the best finished screen (``bar``), it stops (a stiff belt
+    whose cost moves 2 % an iteration, 450 times above the resonance's, took a quarter of
+    the fit). Screens that fall steeply (250 times above the bar, then halving each
+    iteration) run on.
+    """
+
+    last_cost: float
+    bar: float
+    evaluations: int
+
+    def __call__(self, intermediate_result: Any) -> None:
+        cost = float(intermediate_result.cost)
+        left = self.evaluations - int(intermediate_result.nfev)
+        rate = self.last_cost / cost if cost > 0.0 else math.inf
+        self.last_cost = cost
+        if left <= 0 or not math.isfinite(self.bar) or not rate < 1e6:
+            return
+        projected = cost / max(rate, 1.0) ** left
+        if projected > SCREEN_HOPELESS_MARGIN * PROBE_KEEP_RATIO * self.bar:
+            raise StopIteration
+
+
+@dataclass(frozen=True, slots=True)
+class _StopAtBound:
+    """A trial's ``least_squares`` callback: stops it on a hidden-state bound (:func:`_at_a_bound`)."""
+
+    coords: _Coords
+
+    def __call__(self, intermediate_result: Any) -> None:
+        if _at_a_bound(self.coords, np.asarray(intermediate_result.x)):
+            raise StopIteration
+
+
+def _same_point(a: FloatArray, b: FloatArray) -> bool:
+    """Whether two optimizer points agree within SAME_POINT_TOLERANCE in every scaled
+    coordinate (relative to its size, or absolutely near zero)."""
+    tol = SAME_POINT_TOLERANCE * np.maximum(np.maximum(np.abs(a), np.abs(b)), 1.0)
+    return bool(np.all(np.abs(a - b) <= tol))
+
+
 def _at_a_bound(coords: _Coords, x: FloatArray) -> bool:
     """Whether a hidden-state parameter (belt frequency or damping, backlash width) ended within
     1 % of a catalogue bound: a start whose short fit runs there has left the model's domain (a
@@ -624,29 +675,59 @@ def fit_model(
         # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
         # base parameters not yet refitted. A short fit from each on a quarter of the windows,
         # then the full fit from the best.
-        def short_fit(x: FloatArray, evaluations: int) -> Any:
+        def short_fit(x: FloatArray, evaluations: int, callback: Callable[[Any], None] | None = None) -> Any:
+            hopeless = callback if isinstance(callback, _HopelessScreen) else None
+
+            def fun(x_: FloatArray) -> FloatArray:
+                r = probe(x_)
+                if hopeless is not None and math.isnan(hopeless.last_cost):
+                    hopeless.last_cost = 0.5 * float(r @ r)  # the start's (the first evaluation)
+                return r
+
             return least_squares(
-                probe,
+                fun,
                 x,
                 bounds=(coords.lower, coords.upper),
                 method="trf",
                 x_scale=1.0,
                 diff_step=steps,
                 max_nfev=evaluations,
+                callback=callback,
             )
 
         x_starts = [coords.encode(cand) for cand in (model0, *start.alternatives)]
-        screened = [short_fit(x, PROBE_SCREEN_EVALUATIONS) for x in x_starts]
+        screened: list[Any] = []
+        for x in x_starts:
+            bar = min((t.cost for t in screened), default=math.inf)
+            hopeless = _HopelessScreen(math.nan, bar, PROBE_SCREEN_EVALUATIONS)
+            screened.append(short_fit(x, PROBE_SCREEN_EVALUATIONS, hopeless))
         best_screen = min(t.cost for t in screened)
-        trials = []
-        for x, first in zip(x_starts, screened, strict=True):
-            if first.cost > PROBE_KEEP_RATIO * best_screen:
-                continue
-            # A screen that used up its evaluations is run again in full (the same trial as
-            # without the screen); one that converged within them already is that trial.
-            trial = short_fit(x, PROBE_EVALUATIONS) if first.status == 0 else first
-            trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
-        x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
+        # Survivors of the screen, best first, one per basin: starts whose screens ended at the
+        # same point (two starts in one basin, e.g. the same resonance from two sets of base
+        # values) would only repeat each other's trial.
+        kept: list[Any] = []
+        for first in sorted(screened, key=lambda t: t.cost):
+            if first.cost <= PROBE_KEEP_RATIO * best_screen and not any(
+                _same_point(first.x, o.x) for o in kept
+            ):
+                kept.append(first)
+        if len(kept) == 1:
+            # One basin left: the final fit goes on from where its screen stopped.
+            x0 = kept[0].x
+        else:
+            trials: list[tuple[bool, float, FloatArray]] = []
+            for first in kept:
+                # A screen that used up its evaluations goes on for the rest of a trial's;
+                # one that converged within them already is that trial.
+                more = PROBE_EVALUATIONS - PROBE_SCREEN_EVALUATIONS
+                # Once a trial has finished inside the model's domain, one that runs onto a
+                # hidden-state bound has lost whatever its cost (:func:`_at_a_bound`): it stops
+                # there (a belt damping run to its bound of 2 needs many sub-steps a sample).
+                inside = any(not t[0] for t in trials)
+                stop = _StopAtBound(coords) if inside else None
+                trial = short_fit(first.x, more, stop) if first.status == 0 else first
+                trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
+            x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
     sol = solve(x0)
     if "backlash.width" in coords.names:
         # The width's cost is step-like; the first pass moved the other parameters. Search the

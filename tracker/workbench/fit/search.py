@@ -259,8 +259,14 @@ def _grid_with_cost(
     prm = get_param(name)
     best = model
     best_cost = window_cost(meas, est, model, k, stride) if model_cost is None else model_cost
+    # A value clipped to a bound (a fine grid around a stiff belt at 300 Hz) or the model's own
+    # is judged once: the same candidate again can only tie, and a tie never replaces the best.
+    seen = {model.params[name]}
     for v in grid:
         v = min(max(v, prm.lower), prm.upper)
+        if v in seen:
+            continue
+        seen.add(v)
         cand = replace_params(model, {name: v})
         cost = window_cost(meas, est, cand, k, stride, best_cost)
         if cost < best_cost:
@@ -491,7 +497,8 @@ def search_resonance(
         # Each step's winner carries its cost (same stride) into the next: no re-evaluation.
         c, m = profile[i]
         f0 = m.params["compliance.frequency"]
-        fine = [f0 * f for f in FINE_GRID]
+        # With the damping free a 2 % grid follows once it is set: 4 % steps do here.
+        fine = [f0 * f for f in (FINE_GRID[::2] if fit_damping else FINE_GRID)]
         m, c = _grid_with_cost(meas, est, m, "compliance.frequency", fine, k, model_cost=c)
         if fit_damping:
             m, c = _grid_with_cost(
