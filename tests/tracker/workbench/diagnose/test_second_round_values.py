@@ -28,6 +28,18 @@ def _second_round(case_id: str, first_verdict: str) -> tuple[dict[str, Any], Dia
     return second_round(case_id, first_verdict, TRACED_SEED)
 
 
+def _gravity_named_near_its_truth(case_id: str, first_verdict: str) -> None:
+    """The second round after ``first_verdict`` names gravity, within 15 % and 0.1 rad."""
+    truth, second = _second_round(case_id, first_verdict)
+    assert sorted(truth["hidden"]) == sorted(["gravity", first_verdict])
+    assert second.verdict == "gravity", [
+        (c.effect, c.significant, round(c.kstep_gain, 3)) for c in second.candidates
+    ]
+    found = second.candidate("gravity").params
+    assert found["gravity.torque"] == pytest.approx(truth["params"]["gravity.torque"], rel=0.15)
+    assert abs(found["gravity.phase"] - truth["params"]["gravity.phase"]) < 0.1
+
+
 @pytest.mark.slow
 def test_gravity_is_found_after_stiction_whose_fit_took_its_torque() -> None:
     """Regression: a 2 kHz lead-lag log on the tilt axis with a break-away of 100 mN·m over a
@@ -39,14 +51,7 @@ def test_gravity_is_found_after_stiction_whose_fit_took_its_torque() -> None:
     bias by 37 % and 87 %: named "offset". With the break-away left to the refit by simulation
     and the rest from the regression, gravity cuts it by 71 %, leads the bias on both halves,
     and is named, near its true values."""
-    truth, second = _second_round("stiction+gravity-000", "stiction")
-    assert sorted(truth["hidden"]) == ["gravity", "stiction"]
-    assert second.verdict == "gravity", [
-        (c.effect, c.significant, round(c.kstep_gain, 3)) for c in second.candidates
-    ]
-    found = second.candidate("gravity").params
-    assert found["gravity.torque"] == pytest.approx(truth["params"]["gravity.torque"], rel=0.15)
-    assert abs(found["gravity.phase"] - truth["params"]["gravity.phase"]) < 0.1
+    _gravity_named_near_its_truth("stiction+gravity-000", "stiction")
 
 
 @pytest.mark.slow
@@ -59,11 +64,4 @@ def test_gravity_is_found_after_a_clip_whose_fit_took_its_torque() -> None:
     Refitted by simulation together with the clip (every torque candidate of a second round, not
     only one that failed), gravity predicts twice as well as the bias, with the clip back at
     2.35 V, and is named."""
-    truth, second = _second_round("saturation+gravity-000", "saturation")
-    assert sorted(truth["hidden"]) == ["gravity", "saturation"]
-    assert second.verdict == "gravity", [
-        (c.effect, c.significant, round(c.kstep_gain, 3)) for c in second.candidates
-    ]
-    found = second.candidate("gravity").params
-    assert found["gravity.torque"] == pytest.approx(truth["params"]["gravity.torque"], rel=0.15)
-    assert abs(found["gravity.phase"] - truth["params"]["gravity.phase"]) < 0.1
+    _gravity_named_near_its_truth("saturation+gravity-000", "saturation")
