@@ -3,7 +3,7 @@
 A drive delay lags the whole input: the response to every change of the command, also while the
 axis slides steadily. Friction's pre-sliding elasticity (LuGre's bristles) lags the response
 only at rest and after reversals, and a one-sample computational latency is the loop's own; the
-diagnosis tells them apart (see ``judgement._lags_while_sliding`` and ``judgement._physical``).
+diagnosis tells them apart (see ``sliding.lags_while_sliding`` and ``judgement._physical``).
 """
 
 from tracker.plant.effects.base import Effect, Param

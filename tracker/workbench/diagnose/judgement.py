@@ -31,8 +31,10 @@ from tracker.workbench.diagnose.kstep import (
     KStepScore,
     held_out_search,
     refine,
+    with_values,
 )
 from tracker.workbench.diagnose.screening import Screen, Structure, model_params
+from tracker.workbench.diagnose.sliding import lags_while_sliding, resonates_while_sliding
 from tracker.workbench.fit import generic
 from tracker.workbench.measurements.idim import encoder_timing_s
 
@@ -64,17 +66,6 @@ MIN_DELAY_SAMPLES = 0.5  # below: when in the period the encoder is read (no del
 # which a LuGre truth has and the model does not: 1.6-1.7 samples on an independent generator's
 # clean logs with a one-sample latency).
 MIN_DRIVE_DELAY_SAMPLES = 2.0
-MIN_SLIDING_WINDOWS = 20  # windows of steady sliding needed to tell a delay from pre-sliding lag
-# What the rigid body refits there, with and without the delay (see _lags_while_sliding).
-SLIDING_REFIT = ("inertia.J", "viscous.b", "coulomb.torque")
-SLIDING_REFIT_EVALS = 30
-# ... a delay traded the inertia when the rigid body refitted without it takes this many times the
-# delay model's inertia there (gen2 seed 7 clean-029: 3.2x; true delays of truthgen: about 1x).
-TRADED_INERTIA_RATIO = 2.0
-# A belt acts in every regime, friction's pre-sliding spring only at rest and after reversals: a
-# belt must also predict better in the windows of steady sliding, by a paired t over their
-# blocks of at least this (:func:`_resonates_while_sliding`).
-MIN_SLIDING_BELT_T = 2.0
 MAX_RESONANT_DAMPING = compliance_effect.RESONANT_DAMPING  # |H| of a second-order system peaks below
 MIN_CLIPPED_SHARE = 0.002  # a saturation must clip at least this share of the samples
 # A command within this share of the log's largest |u| is held at the controller's own clamp.
@@ -149,19 +140,6 @@ class Judged:
     @property
     def n_params(self) -> int:
         return EFFECT_PARAMS.get(self.effect) or generic.param_count(self.effect)
-
-
-def with_values(model: AxisModel, values: Mapping[str, float], add: str | None = None) -> AxisModel:
-    """``model`` (plus effect ``add``) with ``values`` set, keeping every other value.
-
-    (``AxisModel.with_effect`` would reset an existing asymmetry to symmetric.)
-    """
-    effects = (*model.effects, add) if add and not model.has(add) else model.effects
-    keep = {k: v for k, v in model.params.items()}
-    keep.update(
-        {k: v for k, v in values.items() if k.split(".")[0] in (*effects, "inertia", "viscous", "coulomb")}
-    )
-    return AxisModel.create(model.gain_nm_per_v, {}, effects, keep)
 
 
 def _effect_only(scr: Screen) -> Screen:
@@ -408,9 +386,9 @@ def judge_candidate(
     passed = significant
     significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
     if effect == "delay" and significant:
-        significant = _lags_while_sliding(judge, cand, score)
+        significant = lags_while_sliding(judge, cand, score, MIN_KSTEP_GAIN)
     if effect == "compliance" and significant:
-        significant = _resonates_while_sliding(judge, base_score, score)
+        significant = _resonates(judge, base_score, score)
     established = stiction_at_rest(ctx) if effect == "stiction" else None
     if established is not None and negligible(effect, cand, ctx) is None:
         screen_ok = passed = significant = True
@@ -559,9 +537,9 @@ def refine_leaders(
             if r.effect == "compliance" and compliance_effect.unresolved(refined.params, se) is not None:
                 r.significant = False
             if r.effect == "delay" and r.significant:
-                r.significant = _lags_while_sliding(judge, refined, score)
+                r.significant = lags_while_sliding(judge, refined, score, MIN_KSTEP_GAIN)
             if r.effect == "compliance" and r.significant:
-                r.significant = _resonates_while_sliding(judge, base_score, score)
+                r.significant = _resonates(judge, base_score, score)
 
 
 def judge_against_refitted_base(
@@ -735,85 +713,9 @@ def _saturation_search(
     )
 
 
-def _lags_while_sliding(judge: KStepJudge, model: AxisModel, score: KStepScore) -> bool:
-    """Whether a delay beyond one sample also shows where the axis slides steadily.
-
-    A drive delay lags the whole input, so it predicts better wherever the command changes,
-    also in windows where the axis slides one way throughout. Friction's pre-sliding (LuGre's
-    bristles) lags the response only at rest and after reversals, where it looks like a delay
-    of a couple of samples: the delay beyond one sample (a computational latency, reported
-    apart) must cut the error of those windows by the k-step margin. Runs with too little
-    steady sliding to tell keep the judgement of the whole run.
-
-    The delay is also set against the best the rigid body does without it there: the model
-    without its delay and the model with it, each with its inertia, viscous and Coulomb
-    friction refitted by simulation on those windows. A delay and the inertia trade (on slow
-    commands the axis' own lag J/b looks like a delay), and at starts from rest a coarse
-    encoder rewards a late start (the axis must cross a count before it shows): an independent
-    generator's clean open-loop ramp log on a 1000-count load encoder fitted 52 ms with the
-    inertia at 1/60 of the truth; its sliding windows gained 54 % over the same model without
-    the delay, and 3 % once each had its own inertia back. This is asked only when the delay
-    traded the inertia (the refit without it takes :data:`TRADED_INERTIA_RATIO` times its
-    inertia or more).
-    """
-    sliding = judge.sliding()
-    if model.params["delay.seconds"] <= judge.dt or int(sliding.sum()) < MIN_SLIDING_WINDOWS:
-        return True
-    within_latency = with_values(model, {"delay.seconds": min(model.params["delay.seconds"], judge.dt)})
-    if judge.gain_where(judge.score(within_latency), score, sliding) < MIN_KSTEP_GAIN:
-        return False
-    there = judge.subset(sliding)
-    # Without the delay the refit also starts from the inertia whose lag J/b is the delay (the
-    # trade it tests): from a collapsed inertia it stays in that basin.
-    lag_j = model.params["viscous.b"] * (model.params["delay.seconds"] - judge.dt)
-    starts = [within_latency]
-    if lag_j > model.params["inertia.J"]:
-        starts.append(with_values(within_latency, {"inertia.J": lag_j}))
-    sse, inertia = [math.inf, math.inf], [0.0, 0.0]
-    for i, ms in enumerate((starts, [model])):
-        for m in ms:
-            fitted, _ = refine(there, m, SLIDING_REFIT, max_evals=SLIDING_REFIT_EVALS)
-            for cand in (fitted, m):
-                cand_sse = there.score(cand).sse
-                if cand_sse < sse[i]:
-                    sse[i], inertia[i] = cand_sse, float(cand.params["inertia.J"])
-    if inertia[0] < TRADED_INERTIA_RATIO * inertia[1]:
-        # Without the delay the rigid body takes no inertia it gave up: nothing traded, and on a
-        # coarse encoder the few sliding windows may not tell the two apart (truthgen 6006 dev
-        # delay-001: 500 counts at 2 kHz, both refits 0.0548; J 1.46 and 1.41 g·m²).
-        return True
-    return sse[0] > 0.0 and 1.0 - sse[1] / sse[0] >= MIN_KSTEP_GAIN
-
-
-def _resonates_while_sliding(judge: KStepJudge, base_score: KStepScore, score: KStepScore) -> bool:
-    """Whether a belt also predicts better where the axis slides steadily.
-
-    A belt is a spring between the motor and the load: every change of the command excites it,
-    sliding or not. Friction's pre-sliding is a spring too (LuGre's bristles: stiffness σ0,
-    damping σ1), but between the axis and the frame, and only at rest and for a short travel
-    after a reversal: there a stiff axis rings on it like a load on a belt (an outside
-    generator's clean LuGre log, 2 kHz sines: a "belt" of 172 Hz, damping 0.14, against a bristle
-    resonance of 260 Hz), and in the windows of steady sliding it is spent. So the belt must
-    also win in the windows of steady sliding alone, beyond their own scatter: the paired t of
-    its gain over their blocks at least ``MIN_SLIDING_BELT_T``, or (block errors are heavy-tailed:
-    a few fast steps dominate, and another missing effect, a ripple, may dominate the sliding
-    windows' error) a large share of their error removed, ``PARSIMONY_SIM_GAIN``. That "belt":
-    6 % of their error at t = 1.2, against 37 %, t = 3.5, elsewhere; true belts of two
-    independent generators, Karnopp and LuGre: 15-92 % at t 2.2-4 or more, 85 % at t = 1.6, and
-    46 % at t = 1.1 with a ripple hidden too. Runs with too little steady sliding to tell keep
-    the judgement of the whole run.
-    """
-    sliding = judge.sliding()
-    if int(sliding.sum()) < MIN_SLIDING_WINDOWS:
-        return True
-    part = judge.subset(sliding)
-
-    def on(s: KStepScore) -> KStepScore:
-        return KStepScore(s.window_sse[sliding], s.end_error[sliding], s.fit_percent)
-
-    cmp = part.compare(on(base_score), on(score))
-    beyond_scatter = cmp.t_stat >= MIN_SLIDING_BELT_T or cmp.improvement >= PARSIMONY_SIM_GAIN
-    return cmp.improvement >= MIN_KSTEP_GAIN and beyond_scatter
+def _resonates(judge: KStepJudge, base_score: KStepScore, score: KStepScore) -> bool:
+    """A belt also wins where the axis slides steadily (:func:`.sliding.resonates_while_sliding`)."""
+    return resonates_while_sliding(judge, base_score, score, MIN_KSTEP_GAIN, PARSIMONY_SIM_GAIN)
 
 
 def _explains_more(rich: Judged, simple: Judged, judge: KStepJudge) -> bool:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -311,10 +311,17 @@ def held_out_search(judge: KStepJudge, base: KStepScore, models: Sequence[AxisMo
     return HeldOutSearch(models[best], best, float(np.mean(gains)), (gains[0], gains[1]))
 
 
-def _with(model: AxisModel, values: dict[str, float]) -> AxisModel:
-    """``model`` with ``values`` set and every other value kept (``AxisModel.with_params``
-    resets an existing asymmetry to symmetric unless its value is among the updates)."""
-    return AxisModel.create(model.gain_nm_per_v, {}, model.effects, {**model.params, **values})
+def with_values(model: AxisModel, values: Mapping[str, float], add: str | None = None) -> AxisModel:
+    """``model`` (plus effect ``add``) with ``values`` set, keeping every other value.
+
+    (``AxisModel.with_effect`` would reset an existing asymmetry to symmetric.)
+    """
+    effects = (*model.effects, add) if add and not model.has(add) else model.effects
+    keep = {k: v for k, v in model.params.items()}
+    keep.update(
+        {k: v for k, v in values.items() if k.split(".")[0] in (*effects, "inertia", "viscous", "coulomb")}
+    )
+    return AxisModel.create(model.gain_nm_per_v, {}, effects, keep)
 
 
 def refine(
@@ -350,7 +357,7 @@ def refine(
     def resid(z: FloatArray) -> FloatArray:
         if cancel is not None and cancel():
             raise JobCancelled("diagnosis cancelled while refitting a candidate")
-        m = _with(model, wrap(z * scale))
+        m = with_values(model, wrap(z * scale))
         return judge.errors(m)[:, judge.k_settle + 1 :: 3].ravel()
 
     # Robust loss: a window whose error comes from something no model here has (a disturbance
@@ -369,7 +376,7 @@ def refine(
         loss="soft_l1",
         f_scale=f_scale,
     )
-    fitted = _with(model, wrap(sol.x * scale))
+    fitted = with_values(model, wrap(sol.x * scale))
     # Standard errors: Gauss–Newton covariance, inflated by the residual's correlation length
     # (errors within a prediction window are far from independent).
     r = sol.fun

@@ -1,5 +1,5 @@
 """A delay must beat the rigid body with its own inertia back where the axis slides
-(judgement._lags_while_sliding).
+(sliding.lags_while_sliding).
 
 Ground truth: the independent generator's seed 7 clean-029 (tilt, 500 Hz, open-loop voltage
 ramps, a 1000-count encoder on the load, tanh friction, no delay, no latency): the torque
