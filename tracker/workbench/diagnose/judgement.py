@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -145,17 +145,7 @@ class Judged:
 def _effect_only(scr: Screen) -> Screen:
     """``scr`` with only the new effect's own parameters (the base model keeps its values)."""
     own = {k: v for k, v in scr.params.items() if k.split(".")[0] == scr.effect}
-    return Screen(
-        scr.effect,
-        scr.structure,
-        scr.regression,
-        own,
-        scr.stderr,
-        scr.gain_cv,
-        scr.p_value,
-        scr.folds_improve,
-        scr.detail,
-    )
+    return replace(scr, params=own)
 
 
 def _torque_terms_only(scr: Screen, base: AxisModel) -> Screen | None:
@@ -180,17 +170,7 @@ def _torque_terms_only(scr: Screen, base: AxisModel) -> Screen | None:
     kept = {k: v for k, v in scr.params.items() if k.split(".")[0] not in dropped}
     if len(kept) == len(scr.params):
         return None
-    return Screen(
-        scr.effect,
-        scr.structure,
-        scr.regression,
-        kept,
-        scr.stderr,
-        scr.gain_cv,
-        scr.p_value,
-        scr.folds_improve,
-        scr.detail,
-    )
+    return replace(scr, params=kept)
 
 
 def _centred(scr: Screen, base: AxisModel) -> Screen:
@@ -207,17 +187,7 @@ def _centred(scr: Screen, base: AxisModel) -> Screen:
     delta = scr.params[neg_key] - scr.params.get(pos_key, base.params[pos_key])
     mid = base.params[pos_key]
     values = {pos_key: max(mid - 0.5 * delta, 0.0), neg_key: max(mid + 0.5 * delta, 0.0)}
-    return Screen(
-        scr.effect,
-        scr.structure,
-        scr.regression,
-        values,
-        scr.stderr,
-        scr.gain_cv,
-        scr.p_value,
-        scr.folds_improve,
-        scr.detail,
-    )
+    return replace(scr, params=values)
 
 
 def _candidate_model(model: AxisModel, scr: Screen, ctx: EvidenceContext) -> AxisModel:
@@ -385,10 +355,8 @@ def judge_candidate(
             )
     passed = significant
     significant = significant and _physical(effect, cand, ctx) and negligible(effect, cand, ctx) is None
-    if effect == "delay" and significant:
-        significant = lags_while_sliding(judge, cand, score, MIN_KSTEP_GAIN)
-    if effect == "compliance" and significant:
-        significant = _resonates(judge, base_score, score)
+    if significant:
+        significant = _holds_while_sliding(effect, judge, cand, base_score, score)
     established = stiction_at_rest(ctx) if effect == "stiction" else None
     if established is not None and negligible(effect, cand, ctx) is None:
         screen_ok = passed = significant = True
@@ -536,10 +504,8 @@ def refine_leaders(
             r.significant = r.passed and _physical(r.effect, refined, ctx) and not small
             if r.effect == "compliance" and compliance_effect.unresolved(refined.params, se) is not None:
                 r.significant = False
-            if r.effect == "delay" and r.significant:
-                r.significant = lags_while_sliding(judge, refined, score, MIN_KSTEP_GAIN)
-            if r.effect == "compliance" and r.significant:
-                r.significant = _resonates(judge, base_score, score)
+            if r.significant:
+                r.significant = _holds_while_sliding(r.effect, judge, refined, base_score, score)
 
 
 def judge_against_refitted_base(
@@ -713,9 +679,16 @@ def _saturation_search(
     )
 
 
-def _resonates(judge: KStepJudge, base_score: KStepScore, score: KStepScore) -> bool:
-    """A belt also wins where the axis slides steadily (:func:`.sliding.resonates_while_sliding`)."""
-    return resonates_while_sliding(judge, base_score, score, MIN_KSTEP_GAIN, PARSIMONY_SIM_GAIN)
+def _holds_while_sliding(
+    effect: str, judge: KStepJudge, model: AxisModel, base_score: KStepScore, score: KStepScore
+) -> bool:
+    """Whether a delay or a belt (``model``, scoring ``score``) also wins where the axis slides
+    steadily (:mod:`.sliding`); True for the other effects."""
+    if effect == "delay":
+        return lags_while_sliding(judge, model, score, MIN_KSTEP_GAIN)
+    if effect == "compliance":
+        return resonates_while_sliding(judge, base_score, score, MIN_KSTEP_GAIN, PARSIMONY_SIM_GAIN)
+    return True
 
 
 def _explains_more(rich: Judged, simple: Judged, judge: KStepJudge) -> bool:
