@@ -22,18 +22,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.outside_gen.generate import generate
-from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.diagnose import diagnose
-from tracker.workbench.measurements.data import read_log
+from tests.outside_gen.regenerate import diagnosed
 
 
 def _diagnosed(tmp_path: Path, name: str, seed: int, effect: str | None) -> tuple[dict[str, object], object]:
-    truth = generate(tmp_path, name, seed, effect)
+    truth, d = diagnosed(tmp_path, name, seed, effect)
     assert truth["conditions"]["friction_law"] == "lugre"  # type: ignore[index]
-    meas = read_log(str(tmp_path / f"{name}.csv"))
-    model = AxisModel.for_axis(str(truth["axis"]), (), {}, gain_nm_per_v=float(truth["gain_nm_per_v"]))  # type: ignore[arg-type]
-    return truth, diagnose(meas, model)
+    return truth, d
 
 
 @pytest.mark.slow

@@ -23,11 +23,9 @@ from pathlib import Path
 
 import pytest
 
-from bench.outside_gen.generate import generate
 from bench.outside_gen.scenario import EFFECTS
-from tracker.plant.model import AxisModel
-from tracker.workbench.diagnose.diagnose import Diagnosis, diagnose
-from tracker.workbench.measurements.data import read_log
+from tests.outside_gen.regenerate import diagnosed
+from tracker.workbench.diagnose.diagnose import Diagnosis
 
 SEED = 41
 
@@ -36,10 +34,7 @@ def _diagnosed(
     tmp_path: Path, name: str, effect: str | None, k: int, seed: int = SEED
 ) -> tuple[dict[str, object], Diagnosis]:
     log_seed = seed * 100_000 + (0 if effect is None else 1000 * (EFFECTS.index(effect) + 1)) + k
-    truth = generate(tmp_path, name, log_seed, effect)
-    meas = read_log(str(tmp_path / f"{name}.csv"))
-    model = AxisModel.for_axis(str(truth["axis"]), (), {}, gain_nm_per_v=float(truth["gain_nm_per_v"]))  # type: ignore[arg-type]
-    return truth, diagnose(meas, model)
+    return diagnosed(tmp_path, name, log_seed, effect)
 
 
 @pytest.mark.slow
