@@ -43,7 +43,7 @@ from tracker.workbench.diagnose.judgement import (
 )
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
 from tracker.workbench.diagnose.rests import analyse_rests, slow_residual_nm
-from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params
+from tracker.workbench.diagnose.screening import Structure, TorqueDesign, load_fall, model_params
 from tracker.workbench.diagnose.sensor_floor import sensor_torque_sse
 from tracker.workbench.diagnose.slow_disturbance import JUDGED_EFFECTS, SlowDisturbance, within_disturbance
 from tracker.workbench.diagnose.startlags import analyse_start_lags
@@ -162,7 +162,7 @@ def diagnose(
 
     step(0.0)
     sig = prepare_signals(meas)
-    design = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"])
+    design = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"], load_fall(model))
     base = Structure.of(model)
     base_reg = design.fit(base)
     base_values, _ = model_params(model, base, base_reg)

@@ -93,14 +93,18 @@ class Screen:
 
 
 @njit(cache=True)
-def _play(theta_m: FloatArray, dt: float, half: float) -> FloatArray:
-    """Load angle behind a dead band: it coasts freely until the motor catches it. Shape (n,)."""
+def _play(theta_m: FloatArray, dt: float, half: float, fall_rad_s2: float, phase_rad: float) -> FloatArray:
+    """Load angle behind a dead band: between the flanks it moves under the torques acting on
+    the load alone, its gravity ``−fall·sin(θ_l + phase)`` (``fall`` = T_g / J_l, rad/s²; zero
+    without gravity: it coasts), until the motor catches it. Shape (n,)."""
     n = theta_m.shape[0]
     out = np.empty(n)
     xl = theta_m[0]
     vl = 0.0
     for k in range(n):
-        pred = xl + vl * dt
+        # Semi-implicit Euler in the gap (the velocity first): with no gravity the load coasts.
+        v_free = vl - fall_rad_s2 * math.sin(xl + phase_rad) * dt if k > 0 else 0.0
+        pred = xl + v_free * dt
         d = theta_m[k] - pred
         if d > half:
             new = theta_m[k] - half
@@ -114,13 +118,40 @@ def _play(theta_m: FloatArray, dt: float, half: float) -> FloatArray:
     return out
 
 
+def load_fall(model: AxisModel) -> tuple[float, float]:
+    """What pulls a load that is off both flanks of a dead band: the model's gravity (it acts
+    on the load) over the load's inertia, T_g / J_l (rad/s²), and its phase; (0, 0) without.
+
+    A load with an unbalance does not coast through the gap: it falls onto the flank gravity
+    presses it against, and leaves it only when the motor pulls it away faster than it falls
+    (the contact then changes with the sign of the torque the load needs, J_l·α_l + gravity,
+    not with the motor's acceleration).
+    """
+    if not model.has("gravity"):
+        return (0.0, 0.0)
+    p = model.params
+    j_load = p["inertia.J"] * (1.0 - p["inertia.motor_fraction"])
+    if j_load <= 0.0:
+        return (0.0, 0.0)
+    return (float(p["gravity.torque"] / j_load), float(p["gravity.phase"]))
+
+
 class TorqueDesign:
     """Builds filtered regression columns and torques for any structure on one prepared run."""
 
-    def __init__(self, sig: Signals, gain_nm_per_v: float, motor_fraction: float) -> None:
+    def __init__(
+        self,
+        sig: Signals,
+        gain_nm_per_v: float,
+        motor_fraction: float,
+        load_fall: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
         self.sig = sig
         self.gain = gain_nm_per_v
         self.frac = motor_fraction
+        # The load's own gravity behind a dead band (fall T_g/J_l in rad/s², phase): see
+        # :func:`load_fall` and :func:`_play`.
+        self.load_fall = load_fall
         self.sgn = np.sign(sig.omega_rad_s)
         self._cache: dict[tuple[object, ...], FloatArray] = {}
 
@@ -152,9 +183,9 @@ class TorqueDesign:
             w = st["backlash.width"]
 
             def make() -> FloatArray:
-                return _play(self.sig.theta_rad, self.sig.dt_s, 0.5 * w)
+                return _play(self.sig.theta_rad, self.sig.dt_s, 0.5 * w, *self.load_fall)
 
-            th_l = self._col(("play", round(w, 9)), make)
+            th_l = self._col(("play", round(w, 9), *self.load_fall), make)
             return np.gradient(np.gradient(th_l, self.sig.dt_s), self.sig.dt_s)
         return None
 
