@@ -543,7 +543,11 @@ def judge_against_refitted_base(
     friction's pre-sliding lag: no drive delay), a longer candidate must beat that refit by the
     k-step margin. A clean 2 kHz LuGre log of the same generator named 3.9 samples, 2.9 %
     better than the refit's 1.4; a truthgen delay of 9.4 ms beyond the latency at 250 Hz is
-    refitted past two samples and kept (capped at two samples, it was lost at 4.8 %).
+    refitted past two samples and kept. The refit from one sample stops in the nearest dip of an
+    error that a coarse encoder makes ragged in the delay, so the delay must also beat a delay
+    of two samples with the rigid body refitted to it (:func:`_within_latency`): by the k-step
+    margin, or on each half of the run (that truthgen delay: 4.8 % in all, 6.3 % and 3.2 % on
+    the halves).
     """
     todo = [r for r in rows if r.significant and r.established is None and r.effect != "backlash"]
     if not todo:
