@@ -59,5 +59,5 @@ def test_a_true_delay_a_little_beyond_two_samples_is_still_named() -> None:
     assert truth["hidden"] == ["delay"] and truth["sample_rate_hz"] == 250 and truth["latency_samples"] == 1
     meas = Measurement(log.t, log.u, log.theta, str(truth["id"]))
     axis, gain = str(truth["axis"]), float(truth["gain_nm_per_v"])
-    d = diagnose(meas, AxisModel.for_axis(axis, gain_nm_per_v=gain))  # type: ignore[arg-type]
+    d = diagnose(meas, AxisModel.for_axis(axis, gain_nm_per_v=gain))
     assert d.verdict == "delay", [(c.effect, c.significant, c.finding) for c in d.candidates[:3]]
