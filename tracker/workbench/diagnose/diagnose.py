@@ -75,7 +75,8 @@ class Candidate:
     experiment: str | None = None
     screen_gain: float = 0.0
     kstep_gain: float = 0.0
-    # "computational latency", "significant but small", "only with an unresolved latency", or None
+    # "computational latency", "within a latency", "significant but small", "only with an
+    # unresolved latency", or None
     finding: str | None = None
     model: AxisModel | None = field(default=None, repr=False, compare=False)  # the model with it added
 
@@ -249,6 +250,7 @@ def diagnose(
     notes += tuple(
         f"{r.effect} is detectable but small: {r.within_disturbance}" for r in rows if r.within_disturbance
     )
+    notes += tuple(f"{r.effect} is within a latency: {r.within_latency}" for r in rows if r.within_latency)
     far_off = refit_score.sse < current.sse and current.sse > FAR_OFF_RATIO * refit_score.sse
     if far_off:
         notes = (
