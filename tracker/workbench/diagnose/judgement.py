@@ -106,8 +106,8 @@ TORQUE_EFFECTS = EffectNames(lambda: (*BUILTIN_TORQUE_EFFECTS, *generic_effects(
 # Torque-type effects keep their inverse-dynamics parameters (a direct regression on the torque
 # is more accurate than a k-step refit); these act through the simulation and are refitted.
 REFINED_BY_SIMULATION = ("stiction", "delay", "saturation", "compliance")
-# A belt's frequency and damping are refitted on windows that count this many periods of its
-# resonance after their settling third (:func:`_refit_judge`): a decay is seen from swing to swing.
+# A belt's damping is refitted on windows that count this many periods of its
+# resonance after their settling third (:func:`_damping_over_periods`): a decay is seen swing by swing.
 RESONANCE_PERIODS = 2.0
 HIDDEN_STATE_EFFECTS = ("compliance",)
 
@@ -497,7 +497,9 @@ def refine_leaders(
     ]
     for i, r in enumerate(hopeful[:REFINE_TOP]):
         step(0.7 + 0.1 * i)
-        refined, se = refine(_refit_judge(r, judge, ctx), r.model, cancel=cancel)
+        refined, se = refine(judge, r.model, cancel=cancel)
+        if r.effect == "compliance":
+            refined, se = _damping_over_periods(judge, ctx, refined, se, cancel)
         score = judge.score(refined)
         if score.sse < r.score.sse:
             r.model, r.score, r.cmp, r.stderr = refined, score, judge.compare(base_score, score), se
@@ -511,27 +513,32 @@ def refine_leaders(
                 r.significant = _holds_while_sliding(r.effect, judge, refined, base_score, score)
 
 
-def _refit_judge(r: Judged, judge: KStepJudge, ctx: EvidenceContext) -> KStepJudge:
-    """The judge that refits ``r``'s parameters: ``judge`` itself, but for a belt whose
-    resonance period is longer than what its windows count.
+def _damping_over_periods(
+    judge: KStepJudge,
+    ctx: EvidenceContext,
+    model: AxisModel,
+    stderr: dict[str, float],
+    cancel: Callable[[], bool] | None,
+) -> tuple[AxisModel, dict[str, float]]:
+    """A belt's damping (and its standard error) refitted on windows that count
+    :data:`RESONANCE_PERIODS` periods of its resonance after their settling third, the rest of
+    ``model`` (refitted on ``judge``'s windows) kept; ``model`` and ``stderr`` themselves when
+    ``judge``'s windows already count them.
 
     A damping ratio is read from how fast the resonance decays from one swing to the next; over a
-    window shorter than a period a slower decay trades with the frequency and the inertia split,
-    and the fit is nearly flat in the damping (truthgen 7171 held-out compliance-008: a belt of
-    21.8 Hz, damping 0.16, refitted at 23.5 Hz and 0.61 ± 0.06 on the 30 ms windows, whose last
-    20 ms count: "may have no resonance peak"). Its windows are made to count
-    :data:`RESONANCE_PERIODS` periods of the screened frequency after their settling third; the
-    candidate is still scored and compared on ``judge``'s windows.
+    window shorter than a period the error is nearly flat in it (truthgen 7171 held-out
+    compliance-008: a belt of 21.8 Hz, damping 0.16, refitted at 0.61 ± 0.06 on the 30 ms windows,
+    whose last 20 ms count: "may have no resonance peak"). The frequency is fixed by the phase of
+    the response, which the many short windows read well; the damping alone is refitted here.
     """
-    if r.effect != "compliance":
-        return judge
-    f_hz = float(r.model.params["compliance.frequency"])
+    f_hz = float(model.params["compliance.frequency"])
     counted_s = (judge.k - judge.k_settle) * judge.dt
     need_s = RESONANCE_PERIODS / max(f_hz, 1e-6)
     if need_s <= counted_s:
-        return judge
-    horizon_s = need_s * judge.k / (judge.k - judge.k_settle)
-    return KStepJudge(judge.meas, ctx.sig, horizon_s)
+        return model, stderr
+    long = KStepJudge(judge.meas, ctx.sig, need_s * judge.k / (judge.k - judge.k_settle))
+    refitted, se = refine(long, model, ["compliance.damping"], cancel=cancel)
+    return refitted, {**stderr, "compliance.damping": se["compliance.damping"]}
 
 
 def judge_against_refitted_base(
