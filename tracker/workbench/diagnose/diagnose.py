@@ -31,7 +31,6 @@ from tracker.workbench.diagnose.judgement import (
     TORQUE_EFFECTS,
     Judged,
     finding,
-    judge_against_refitted_base,
     judge_candidate,
     look_alike_notes,
     negligible,
@@ -42,6 +41,7 @@ from tracker.workbench.diagnose.judgement import (
     with_values,
 )
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
+from tracker.workbench.diagnose.refitted_base import judge_against_refitted_base
 from tracker.workbench.diagnose.rests import analyse_rests, slow_residual_nm
 from tracker.workbench.diagnose.screening import Structure, TorqueDesign, load_fall, model_params
 from tracker.workbench.diagnose.sensor_floor import sensor_torque_sse
