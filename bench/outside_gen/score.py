@@ -1,7 +1,7 @@
 """Score `tracker model diagnose` (its command line only) on a seeded matrix of this generator.
 
-    /work/main/.venv/bin/python bench/outside_gen/score.py --out /work/scratch-gen2/m1 [--seed 2]
-        [--clean 32] [--per-effect 4] [--jobs 2] [--tracker-dir /work/main] [--only a,b]
+    python bench/outside_gen/score.py --out OUT_DIR [--seed 2]
+        [--clean 32] [--per-effect 4] [--jobs 2] [--tracker-dir CHECKOUT] [--only a,b]
 
 Generates NAME.csv + NAME.truth.json (skipped when present), runs
 `python -m tracker model diagnose NAME.csv --axis A --gain K --json` in --tracker-dir (so that
@@ -29,7 +29,8 @@ from bench.outside_gen.generate import EFFECT_PARAMS, generate  # noqa: E402
 from bench.outside_gen.scenario import EFFECTS  # noqa: E402
 
 EQUIVALENT = {frozenset({"offset", "coulomb_asymmetry"})}  # issue 9: may stand for each other
-PYTHON = "/work/main/.venv/bin/python"
+PYTHON = sys.executable  # the interpreter running this script runs the CLI too
+REPO = Path(__file__).resolve().parents[2]
 
 
 def matrix(seed: int, n_clean: int, per_effect: int) -> list[tuple[str, int, str | None]]:
@@ -230,13 +231,15 @@ def report(logs: list[tuple[Path, str]]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=Path, default=Path("/work/scratch-gen2/matrix"))
+    ap.add_argument("--out", type=Path, default=Path("outside_gen_matrix"))
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--clean", type=int, default=32)
     ap.add_argument("--per-effect", type=int, default=4)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument(
-        "--tracker-dir", default="/work/main", help="folder whose tracker package the CLI imports"
+        "--tracker-dir",
+        default=str(REPO),
+        help="folder whose tracker package the CLI imports (default: this checkout)",
     )
     ap.add_argument("--only", default="", help="comma-separated log names or effects (clean for clean logs)")
     ap.add_argument("--rerun", action="store_true", help="run the CLI again even where NAME.diag.json exists")

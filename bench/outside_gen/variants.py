@@ -1,7 +1,7 @@
 """Why did the workbench say that? Regenerate one log of the matrix with one thing changed, run
 the CLI on it, and print the verdict next to the original's.
 
-    /work/main/.venv/bin/python bench/outside_gen/variants.py --out /work/scratch-gen2/m1 \
+    python bench/outside_gen/variants.py --out OUT_DIR \
         --name clean-011 --seed 100011 [--effect E] --change tanh,no_inductance,fine_encoder
 
 Changes: tanh (a tanh friction law in place of LuGre),
@@ -67,7 +67,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, required=True)
     ap.add_argument("--effect", default=None)
     ap.add_argument("--change", required=True, help="comma-separated; each alone, then all together")
-    ap.add_argument("--tracker-dir", default="/work/main")
+    ap.add_argument("--tracker-dir", default=str(Path(__file__).resolve().parents[2]))
     a = ap.parse_args()
     changes = a.change.split(",")
     sets = [[c] for c in changes] + ([changes] if len(changes) > 1 else [])

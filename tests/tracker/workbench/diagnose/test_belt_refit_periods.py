@@ -6,8 +6,8 @@ windows of the judgement last 30 ms, of which the last 20 ms count: less than ha
 inertia split), and the refit's damping is whatever the start and the noise make it. The fitted
 belt then "may have no resonance peak" (its damping's 95 % bound above 1/√2) and is not named.
 
-Ground truth: the independent truth generator (tests/truthgen), seed 7171 held-out (spent, see
-/work/notes/HELPERS.md), compliance-008: a 21.8 Hz belt, damping 0.16, 1 kHz, 4000-count
+Ground truth: the independent truth generator (tests/truthgen), seed 7171 held-out (spent: scored once at
+the end of a session, development data since), compliance-008: a 21.8 Hz belt, damping 0.16, 1 kHz, 4000-count
 encoder, PD + feed-forward. Refitted on the 30 ms windows: 23.5 Hz, damping 0.61 ± 0.06, no
 verdict; refitted on windows counting two periods: 22.3 Hz, 0.14 ± 0.04, a resonance established,
 named (at 21.4 Hz, 0.20: the belt search's values, which the 30 ms windows score best).

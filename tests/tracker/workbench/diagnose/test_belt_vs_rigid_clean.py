@@ -5,8 +5,8 @@ whatever fills the belt's hidden load state must not be able to soak up the smoo
 on a log with no belt, or the k-step judgement (and the held-out belt search, which alone can
 make a belt significant) names a belt on clean logs.
 
-Ground truth: the independent truth generator (tests/truthgen), seed 9393 held-out (spent, see
-/work/notes/HELPERS.md), clean logs with 1000-count encoders: clean-003 (250 Hz, PID,
+Ground truth: the independent truth generator (tests/truthgen), seed 9393 held-out (spent: scored once at
+the end of a session, development data since), clean logs with 1000-count encoders: clean-003 (250 Hz, PID,
 disturbance 0.9 mN·m) and clean-011 (500 Hz, disturbance 3.0 mN·m). The rigid model has the
 generator's true base values; the belts are a grid over the catalogue's range of resonances.
 From the open-loop observer the best belt predicts 24-32 % worse; a load state corrected by the
