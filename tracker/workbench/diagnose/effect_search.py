@@ -19,7 +19,7 @@ from tracker.errors import JobCancelled
 from tracker.plant.effects import generic_effects, get_effect
 from tracker.plant.model import AxisModel
 from tracker.units import AMPLIFIER_LIMIT_V
-from tracker.workbench.diagnose.screening import Screen, Structure, TorqueDesign, screen
+from tracker.workbench.diagnose.screening import Screen, Structure, TorqueDesign, gravity_fall, screen
 from tracker.workbench.fit import generic
 from tracker.workbench.fit.search import whole_is_enough
 from tracker.workbench.measurements.idim import Regression, Signals
@@ -260,11 +260,9 @@ def _gravity_behind_gap(
     while that fits the torque better (:data:`GAP_FALL_PASSES` at most); against the present
     model's own regression, as every candidate is."""
     for _ in range(GAP_FALL_PASSES):
-        p = scr.params
-        j_load = p["inertia.J"] * (1.0 - design.frac)
-        if j_load <= 0.0 or p["gravity.torque"] <= 0.0:
+        fall = gravity_fall(scr.params, design.frac)
+        if fall[0] <= 0.0:
             break
-        fall = (p["gravity.torque"] / j_load, p["gravity.phase"])
         falling = TorqueDesign(design.sig, design.gain, design.frac, fall)
         nxt = screen("gravity", falling, model, base, base_reg, scr.structure, 2)
         if nxt.regression.sse >= scr.regression.sse:

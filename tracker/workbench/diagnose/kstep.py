@@ -317,7 +317,7 @@ def with_values(model: AxisModel, values: Mapping[str, float], add: str | None =
     (``AxisModel.with_effect`` would reset an existing asymmetry to symmetric.)
     """
     effects = (*model.effects, add) if add and not model.has(add) else model.effects
-    keep = {k: v for k, v in model.params.items()}
+    keep = dict(model.params)
     keep.update(
         {k: v for k, v in values.items() if k.split(".")[0] in (*effects, "inertia", "viscous", "coulomb")}
     )

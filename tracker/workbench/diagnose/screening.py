@@ -129,11 +129,17 @@ def load_fall(model: AxisModel) -> tuple[float, float]:
     """
     if not model.has("gravity"):
         return (0.0, 0.0)
-    p = model.params
-    j_load = p["inertia.J"] * (1.0 - p["inertia.motor_fraction"])
+    return gravity_fall(model.params, model.params["inertia.motor_fraction"])
+
+
+def gravity_fall(params: Mapping[str, float], motor_fraction: float) -> tuple[float, float]:
+    """The fall T_g / J_l (rad/s²) and phase of :func:`load_fall` from gravity's and the
+    inertia's values in ``params``, the load's inertia being ``1 − motor_fraction`` of the
+    axis's; (0, 0) when the load has no inertia."""
+    j_load = params["inertia.J"] * (1.0 - motor_fraction)
     if j_load <= 0.0:
         return (0.0, 0.0)
-    return (float(p["gravity.torque"] / j_load), float(p["gravity.phase"]))
+    return (float(params["gravity.torque"] / j_load), float(params["gravity.phase"]))
 
 
 class TorqueDesign:
@@ -345,4 +351,13 @@ def screen(
     return Screen(effect, structure, reg, params, stderr, gain, p, folds, dict(detail or {}))
 
 
-__all__ = ["NONLINEAR", "Screen", "Structure", "TorqueDesign", "model_params", "screen"]
+__all__ = [
+    "NONLINEAR",
+    "Screen",
+    "Structure",
+    "TorqueDesign",
+    "gravity_fall",
+    "load_fall",
+    "model_params",
+    "screen",
+]
