@@ -196,24 +196,6 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
     )
 
 
-def _crept_to(u: FloatArray, at: int, dt: float) -> bool:
-    """Whether the command crept up to ``u[at]``, the one applied when the axis broke away: its
-    mean over the last ``PRE_S[0]`` up to ``at`` is within ``MAX_JUMP_V`` of its mean 20 ms
-    earlier (the test :func:`analyse_breakaway` makes before the encoder's change, made again at
-    the break itself). The two differ by the model's delay and the travel to the first count:
-    with a 15 ms delay on a 500-count encoder a step comes 28-46 ms before the count changes,
-    past the first test's window, and the step's level was taken for the break-away (a delay
-    log's second round: +0.12 N·m over Coulomb in 18 "creeping" starts, all after steps)."""
-    pre0 = int(round(PRE_S[0] / dt))
-    slope_n = max(3, int(round(0.02 / dt)))
-    lo = at - pre0 - slope_n
-    if lo < 0:
-        return False
-    late = float(np.mean(u[at - pre0 : at + 1]))
-    early = float(np.mean(u[lo : at - slope_n + 1]))
-    return abs(late - early) <= MAX_JUMP_V
-
-
 def _break_torque_nm(
     meas: Measurement, model: AxisModel, first_moved: int, rest: int, direction: float, distance: float
 ) -> float:
@@ -257,8 +239,6 @@ def _break_torque_nm(
         at = int(math.floor(k0 + (lead - 0.5) - travel - delay))
         if at < 0 or at >= first_moved:
             return level
-        if not _crept_to(meas.u_v, at, dt):
-            return math.nan  # the torque reaching the axis stepped to the level: a prompt start
         level = direction * (model.gain_nm_per_v * float(meas.u_v[at]) - other)
         swing = model.gain_nm_per_v * float(np.ptp(meas.u_v[at:first_moved]))
         if swing > MAX_TRAVEL_SWING * float(model.params["coulomb.torque"]):
