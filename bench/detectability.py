@@ -53,8 +53,9 @@ MOVING_COUNTS_PER_S = 5.0  # samples slower than this many counts per second are
 FLICKER_MIN_COUNTS = 2.0
 FLICKER_SIGMAS = 6.0
 REST_S = 0.05  # a start from rest: the reading held this long, then moved
-HELD_WINDOW_S = 0.02  # the held command: median over this window ...
-HELD_SKIP_S = 0.004  # ... ending this long before the reading moved (the break within a sample)
+# A rest holds a torque when it lasted this many samples beyond the time the axis without static
+# friction needs to cover a count (where in the period the count changed; a delay's rounding).
+HELD_SLACK_SAMPLES = 2
 REST_SIGMAS = 3.0  # with angle noise: at rest while within this many σ of the rest's first reading
 
 
@@ -202,6 +203,8 @@ def _pair(truth: Mapping[str, Any], t: FloatArray, u: FloatArray, theta: FloatAr
             "flank_changes": flips,
             "detectable": bool(single["detectable"]) and flips > 0,
         }
+    if set(hidden) == {"stiction", "delay"}:
+        rated["stiction"] = _stiction_behind_delay(p, truth, t, u, theta)
     verdicts = [r["detectable"] for r in rated.values()]
     return {
         "effect": "+".join(hidden),
@@ -209,6 +212,33 @@ def _pair(truth: Mapping[str, Any], t: FloatArray, u: FloatArray, theta: FloatAr
         "value": None,
         "detectable": False if False in verdicts else None,
         "effects": rated,
+    }
+
+
+def _stiction_behind_delay(
+    p: Mapping[str, float], truth: Mapping[str, Any], t: FloatArray, u: FloatArray, theta: FloatArray
+) -> dict[str, Any]:
+    """Static friction beside a transport delay: rated as a single stiction on the command as it
+    reaches the axis (the logged command delayed by the true delay and the log's computational
+    latency, in whole samples).
+
+    The torque the axis holds at rest is the delayed command's: on the logged command, a step
+    past the break-away shows as "held" for the delay's length before every start (an 18 ms delay
+    against the rating's 4 ms skip), so an open-loop step program whose steps all start the axis
+    at once would be rated detectable by the delay alone.
+    """
+    dt = float(np.median(np.diff(t)))
+    lag = p.get("delay.seconds", 0.0) + int(truth.get("latency_samples", 0)) * dt
+    n = int(round(lag / dt))
+    at_axis = np.concatenate([np.full(n, u[0]), u[: u.size - n]]) if 0 < n < u.size else u
+    single = _stiction(p, truth, t, at_axis, theta)
+    return {
+        "measure": single["measure"],
+        "value": single["value"],
+        "rests": single["rests"],
+        "holding": single["holding"],
+        "delay_samples": n,
+        "detectable": bool(single["detectable"]),
     }
 
 
@@ -230,25 +260,72 @@ def flank_changes(p: Mapping[str, float], truth: Mapping[str, Any], t: FloatArra
     return int(np.count_nonzero(held[1:] != held[:-1]))
 
 
+def _travel_s(net_nm: float, j: float, b: float, count_rad: float) -> float:
+    """Time a rigid axis from rest needs to cover ``count_rad`` under a net torque ``net_nm``
+    (inertia ``j``, viscous ``b``): θ(t) = (F/b)·(t − (1 − e^(−b·t/J))·J/b); inf if not positive."""
+    if net_nm <= 0:
+        return math.inf
+    rigid = math.sqrt(2.0 * count_rad * j / net_nm)
+    if b <= 0:
+        return rigid
+    tau = j / b
+
+    def covered(x: float) -> float:
+        return (net_nm / b) * (x - tau * -math.expm1(-x / tau))
+
+    lo, hi = 0.0, rigid
+    while covered(hi) < count_rad:
+        hi *= 2.0
+        if hi > 1e6:
+            return math.inf
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if covered(mid) < count_rad else (lo, mid)
+    return hi
+
+
+def _longest_run(mask: NDArray[np.bool_]) -> int:
+    if not mask.any():
+        return 0
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return int(np.max(np.flatnonzero(d == -1) - np.flatnonzero(d == 1)))
+
+
 def _stiction(
     p: Mapping[str, float], truth: Mapping[str, Any], t: FloatArray, u: FloatArray, theta: FloatArray
 ) -> dict[str, Any]:
-    """The torque held above Coulomb at rest, against the disturbance and Coulomb's uncertainty."""
+    """The torque the axis holds above Coulomb at rest, against the disturbance and Coulomb's
+    uncertainty.
+
+    A rest's held torque is the highest excess over Coulomb, up to the true excess ``Fs − Fc``
+    (a torque beyond the break-away is not held), that the command kept, never beyond the
+    break-away, for long enough that the axis without static friction would have covered a whole
+    encoder count in it (from rest, at that excess; plus ``HELD_SLACK_SAMPLES`` for where in the
+    period the count changed and a delay's rounding to samples). After a step past
+    the break-away the axis starts at once, and the time it then needs to reach the next count
+    (19 ms on a 1000-count encoder at 0.05 N·m net) holds nothing: only a torque that stayed
+    above Coulomb longer than that, the axis still, says that static friction held it.
+    """
     dt = float(np.median(np.diff(t)))
     step = p.get("quantization.step", 0.0)
     k = float(truth["gain_nm_per_v"])
     excess = max(p["stiction.static_torque"] - p["coulomb.torque"], 0.0)
     fc_neg = p.get("coulomb_asymmetry.negative", p["coulomb.torque"])
-    win, skip = max(1, int(round(HELD_WINDOW_S / dt))), max(1, int(round(HELD_SKIP_S / dt)))
-    torque = np.convolve(k * u, np.ones(win) / win, mode="full")[: u.size]  # mean of the last win
+    j, b = p["inertia.J"], p.get("viscous.b", 0.0)
+    torque = k * u
     over = np.abs(torque) - np.where(torque >= 0, p["coulomb.torque"], fc_neg)
     rests = starts_from_rest(theta, step, dt)
     held = []
     for first, first_moved, _ in rests:
-        lo, hi = first + win, first_moved - skip
-        if hi > lo:
-            held.append(float(np.max(over[lo:hi])))
-    h = np.clip(np.array(held, dtype=float), 0.0, excess)
+        seg = over[first : first_moved - 1]  # the sample the reading moved at belongs to the start
+        best = 0.0
+        holdable = (seg > 0.0) & (seg <= excess)  # above Coulomb, below the break-away
+        for level in np.unique(seg[holdable]):
+            need = _travel_s(float(level), j, b, max(step, 1e-12)) + HELD_SLACK_SAMPLES * dt
+            if level > best and _longest_run(holdable & (seg >= level)) * dt >= need:
+                best = float(level)
+        held.append(best)
+    h = np.array(held, dtype=float)
     sigma_d = float(truth.get("noise", {}).get("disturbance_rms_nm", 0.0))
     se_fc = _coulomb_se(p, truth, t, u, theta, min(CUTOFF_HZ))
     sigma = math.hypot(sigma_d, se_fc)
