@@ -43,7 +43,13 @@ from tracker.workbench.diagnose.judgement import (
 from tracker.workbench.diagnose.kstep import KStepJudge, KStepScore
 from tracker.workbench.diagnose.refitted_base import judge_against_refitted_base
 from tracker.workbench.diagnose.rests import analyse_rests, slow_residual_nm
-from tracker.workbench.diagnose.screening import Structure, TorqueDesign, load_fall, model_params
+from tracker.workbench.diagnose.screening import (
+    Structure,
+    TorqueDesign,
+    load_fall,
+    model_params,
+    sliding_coulomb,
+)
 from tracker.workbench.diagnose.sensor_floor import sensor_torque_sse
 from tracker.workbench.diagnose.slow_disturbance import JUDGED_EFFECTS, SlowDisturbance, within_disturbance
 from tracker.workbench.diagnose.startlags import analyse_start_lags
@@ -191,7 +197,7 @@ def diagnose(
     rest_err = float(base_score.window_sse[at_rest].sum() / max(base_score.sse, 1e-300))
     # The rests judged against the Coulomb torque of the moving data (the torque regression):
     # a model fitted to the whole run may have absorbed part of a missing break-away.
-    sliding_coulomb = float(base_values.get("coulomb.torque", base_model.params["coulomb.torque"]))
+    moving_coulomb = float(base_values.get("coulomb.torque", base_model.params["coulomb.torque"]))
     ctx = EvidenceContext(
         sig,
         design,
@@ -199,8 +205,9 @@ def diagnose(
         analyse_breakaway(meas, base_model),
         model,
         (rest_err, float(at_rest.mean())),
-        analyse_rests(sig, base_reg, base_model, sliding_coulomb),
-        analyse_start_lags(sig, base_model, sliding_coulomb, slow_residual_nm(sig, base_reg)),
+        analyse_rests(sig, base_reg, base_model, moving_coulomb),
+        analyse_start_lags(sig, base_model, moving_coulomb, slow_residual_nm(sig, base_reg)),
+        sliding_coulomb(design, model, base_reg),
     )
     # A second round judges a torque effect's share of the residual beyond the encoder's own;
     # not the first round's look again with its computational latency added (``refit_present``

@@ -68,6 +68,9 @@ class EvidenceContext:
     rest_share: tuple[float, float] = (0.0, 0.0)  # (share of k-step error, share of windows) from rest
     rests: RestHolds | None = None  # rests that held a torque beyond Coulomb (open-loop steps)
     start_lags: StartLags | None = None  # start times from rest: a constant lag or a break-away level
+    # the sliding Coulomb torque of the moving data and its standard error (N·m), at the
+    # low-pass that determines it best (:func:`...screening.sliding_coulomb`); None: the base regression's
+    sliding_coulomb: tuple[float, float] | None = None
 
     def confusions(self, effect: str, significant: Sequence[str]) -> tuple[str, ...]:
         """Look-alike effects of ``effect``: its own, then generic effects that name it as theirs

@@ -436,9 +436,12 @@ def breakaway_over_sliding(ctx: EvidenceContext) -> tuple[float, float] | None:
     ba = ctx.breakaway
     if ba is None or not ba.static_excess_se > 0:
         return None
-    values, stderr = model_params(ctx.model, Structure.of(ctx.model), ctx.base_reg)
-    sliding = float(values["coulomb.torque"])
-    sliding_se = float(stderr.get("coulomb.torque", 0.0))
+    if ctx.sliding_coulomb is not None:
+        sliding, sliding_se = ctx.sliding_coulomb
+    else:
+        values, stderr = model_params(ctx.model, Structure.of(ctx.model), ctx.base_reg)
+        sliding = float(values["coulomb.torque"])
+        sliding_se = float(stderr.get("coulomb.torque", 0.0))
     se = math.hypot(ba.static_excess_se, sliding_se) if math.isfinite(sliding_se) else ba.static_excess_se
     return ba.static_excess_nm + ba.coulomb_nm - sliding, se
 

@@ -123,11 +123,44 @@ def prepare_signals(meas: Measurement, cutoff_hz: float | None = None) -> Signal
     use = use[use % dec == 0]
     fold = ((meas.t_s - meas.t_s[0]) // BLOCK_S).astype(np.int64) % 2
     if use.size < 50 or np.unique(fold[use]).size < 2:
-        raise DataError(
-            f"{meas.source or '<data>'}: only {use.size} usable moving samples; the axis must move "
-            "for at least a few seconds to identify anything"
-        )
+        raise DataError(_too_little_motion(meas, stuck, keep, use.size, q, guard * dt))
     return Signals(dt, fc, meas.t_s, meas.u_v, meas.theta_rad, th, om, al, stuck, use, fold, q, sos)
+
+
+def _too_little_motion(
+    meas: Measurement, stuck: BoolArray, keep: BoolArray, n_use: int, step_rad: float, guard_s: float
+) -> str:
+    """Why a log has too few moving samples for inverse dynamics, in its own numbers: how much
+    of the run stood still (or crept slower than the encoder can time), the encoder's step and
+    count rate, and where the axis did move."""
+    dt = meas.dt_s
+    duration = float(meas.t_s[-1] - meas.t_s[0]) + dt
+    changes = int(np.count_nonzero(np.diff(meas.theta_rad) != 0.0))
+    text = f"{meas.source or '<data>'}: only {n_use} usable moving samples"
+    if step_rad > 0.0:
+        creep = step_rad / STUCK_MIN_S
+        text += (
+            f": the axis stood still, or moved slower than one encoder step ({step_rad:.3g} rad, "
+            f"{2.0 * math.pi / step_rad:.0f} counts/rev) per {1e3 * STUCK_MIN_S:.0f} ms "
+            f"({creep:.3g} rad/s), on {100.0 * float(stuck.mean()):.0f} % of the "
+            f"{duration:.1f} s run (the reading changed {changes} times), and the inverse "
+            f"dynamics uses only samples at least {1e3 * guard_s:.0f} ms from such a stand-still"
+        )
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], keep.astype(np.int8), [0]))))
+        spells = sorted(zip(edges[::2], edges[1::2], strict=True), key=lambda s: s[0] - s[1])[:3]
+        if spells:
+            where = ", ".join(f"t = {meas.t_s[a]:.2f}–{meas.t_s[b - 1]:.2f} s" for a, b in sorted(spells))
+            text += f"; the longest moving spells: {where}"
+        text += (
+            f". The axis must move faster than {creep:.3g} rad/s for at least a few seconds in all "
+            "(faster moves or a finer encoder) to identify anything"
+        )
+    else:
+        text += (
+            f": the reading never changes in the {duration:.1f} s run; "
+            "the axis must move to identify anything"
+        )
+    return text
 
 
 @dataclass(frozen=True, slots=True)

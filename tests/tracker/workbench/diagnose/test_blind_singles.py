@@ -116,3 +116,51 @@ def test_stiction_under_a_coarse_encoder_at_2khz_is_named_stiction() -> None:
     excess = c.params["stiction.static_torque"] - truth["params"]["coulomb.torque"]
     true_excess = truth["params"]["stiction.static_torque"] - truth["params"]["coulomb.torque"]
     assert excess > 0.5 * true_excess
+
+
+def test_stiction_on_a_coarse_slow_encoder_is_judged_over_a_well_determined_coulomb() -> None:
+    """Regression (seed 8181, spent held-out half): a 250 Hz lead-lag log, 500 counts per
+    revolution, break-away 80 % above Coulomb. The creeping starts measured it well (+0.034 ±
+    0.004 N·m over the model's Coulomb), but the sliding Coulomb it is judged over came from the
+    torque regression at 50 Hz, where the encoder's step differentiated twice swamps the
+    acceleration: inertia 0.0002 for 0.0033, Coulomb 0.042 ± 0.017 N·m, so the excess was
+    2.4 standard errors and the verdict none. At the low-pass that determines Coulomb best
+    (12.5 Hz here) it is 0.045 ± 0.003 N·m, and the break-away is established from rest."""
+    import tests.truthgen.matrix as matrix
+    from tracker.workbench.diagnose.screening import Structure, TorqueDesign, model_params, sliding_coulomb
+    from tracker.workbench.measurements.idim import prepare_signals
+
+    with matrix.seeded(8181):
+        log, truth = matrix.generate_case("stiction-000")
+    assert truth["hidden"] == ["stiction"] and truth["encoder_counts_per_rev"] == 500
+    model = AxisModel.for_axis(str(truth["axis"]), gain_nm_per_v=float(truth["gain_nm_per_v"]))  # type: ignore[arg-type]
+    sig = prepare_signals(Measurement(log.t, log.u, log.theta))
+    design = TorqueDesign(sig, model.gain_nm_per_v, model.params["inertia.motor_fraction"])
+    reg = design.fit(Structure.of(model))
+    _, se = model_params(model, Structure.of(model), reg)
+    fc, fc_se = sliding_coulomb(design, model, reg)
+    true_fc = truth["params"]["coulomb.torque"]
+    assert fc_se < 0.5 * se["coulomb.torque"]
+    assert abs(fc - true_fc) < 3 * fc_se
+    d = _diagnose(log, truth)
+    assert d.verdict == "stiction"
+    assert "measured from rest" in d.candidate("stiction").evidence
+
+
+def test_a_log_too_slow_for_its_encoder_is_refused_with_what_and_where() -> None:
+    """Regression (seed 8181, spent held-out half): a 500 Hz PID log on a 500-count encoder that
+    moves 227 counts in 30 s (a dead band of 0.7 of the reading's spread: not resolvable). Inverse
+    dynamics has 79 usable samples, and the refusal said only "the axis must move for at least a
+    few seconds", though it did. It now says why: the share of the run slower than a count per
+    20 ms on that encoder, the speed that would do, and where the axis moved."""
+    import tests.truthgen.matrix as matrix
+    from tracker.errors import DataError
+    from tracker.workbench.measurements.idim import prepare_signals
+
+    with matrix.seeded(8181):
+        log, truth = matrix.generate_case("backlash-007")
+    assert truth["encoder_counts_per_rev"] == 500
+    with pytest.raises(DataError) as err:
+        prepare_signals(Measurement(log.t, log.u, log.theta, "backlash-007.csv"))
+    text = str(err.value)
+    assert "500 counts/rev" in text and "0.628 rad/s" in text and "t = " in text
