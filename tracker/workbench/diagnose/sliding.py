@@ -123,9 +123,22 @@ def resonates_while_sliding(
 
     cmp = part.compare(on(base_score), on(score))
     beyond_scatter = cmp.t_stat >= MIN_SLIDING_BELT_T or cmp.improvement >= large_gain
-    if not (cmp.improvement >= min_gain and beyond_scatter):
-        return False
-    # ... and in the faster half of them, where friction's own dynamics are weakest.
+    return (
+        cmp.improvement >= min_gain
+        and beyond_scatter
+        and resonates_while_fast(judge, base_score, score, min_gain)
+    )
+
+
+def resonates_while_fast(
+    judge: KStepJudge, base_score: KStepScore, score: KStepScore, min_gain: float
+) -> bool:
+    """Whether a belt cuts the error of the faster half of the windows of steady sliding (by
+    their slowest |ω|, :func:`window_speed`) by ``min_gain``, where friction's own dynamics are
+    weakest (see :func:`resonates_while_sliding`); True with too few such windows to tell."""
+    sliding = judge.sliding()
+    if int(sliding.sum()) < MIN_SLIDING_WINDOWS:
+        return True
     speed = window_speed(judge)
     fast = sliding & (speed > float(np.median(speed[sliding])))
     return judge.gain_where(base_score, score, fast) >= min_gain
@@ -139,4 +152,10 @@ def window_speed(judge: KStepJudge) -> FloatArray:
     return np.asarray(np.abs(om).min(axis=1), dtype=float)
 
 
-__all__ = ["MIN_SLIDING_WINDOWS", "lags_while_sliding", "resonates_while_sliding", "window_speed"]
+__all__ = [
+    "MIN_SLIDING_WINDOWS",
+    "lags_while_sliding",
+    "resonates_while_fast",
+    "resonates_while_sliding",
+    "window_speed",
+]
