@@ -57,12 +57,20 @@ def clearly_present(size: dict[str, float]) -> bool:
 def build(
     name: str, seed: int, effect: str | None, duration_s: float = 20.0, tries: int = 6
 ) -> tuple[Scenario, Run]:
-    """A log whose hidden effect is clearly present: redrawn (seed + 7919·k) until it is."""
+    """A log whose hidden effect is clearly present: redrawn (seed + 7919·k) until it is. A draw
+    whose plant diverges under the fixed-step integrator (a stiff or unstable loop) is no log:
+    it is redrawn too."""
+    built: tuple[Scenario, Run] | None = None
     for k in range(tries):
-        sc, run = build_once(name, seed + 7919 * k, effect, duration_s)
-        if effect is None or clearly_present(size_of_effect(sc, run)):
+        try:
+            built = build_once(name, seed + 7919 * k, effect, duration_s)
+        except FloatingPointError:
+            continue
+        if effect is None or clearly_present(size_of_effect(*built)):
             break
-    return sc, run
+    if built is None:
+        raise FloatingPointError(f"{name} (seed {seed}): the plant diverged in all {tries} draws")
+    return built
 
 
 def size_of_effect(sc: Scenario, run: Run) -> dict[str, float]:
