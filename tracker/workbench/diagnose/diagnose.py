@@ -34,6 +34,7 @@ from tracker.workbench.diagnose.judgement import (
     judge_candidate,
     look_alike_notes,
     negligible,
+    promote_angle_dependence,
     rank,
     reconsider_backlash,
     refine_leaders,
@@ -235,6 +236,8 @@ def diagnose(
     refine_leaders(rows, judge, base_score, ctx, step, cancel)
     reconsider_backlash(rows, screens, ctx)  # a belt its refit by simulation rejected
     rank(rows, judge, ctx, screens)
+    if promote_angle_dependence(rows, judge, base_score, ctx):
+        rank(rows, judge, ctx, screens)
     refitted = present and refit_present
     if (
         not refitted

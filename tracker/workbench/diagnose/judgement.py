@@ -621,6 +621,44 @@ def rank(
                 rows[i], rows[j] = rows[j], rows[i]
 
 
+def promote_angle_dependence(
+    rows: list[Judged], judge: KStepJudge, base_score: KStepScore, ctx: EvidenceContext
+) -> bool:
+    """Let a torque of position whose regression failed compete with the constant look-alike
+    that leads (in place; True when it now leads).
+
+    A bias torque is the same at every angle; gravity, ``T_g·sin(θ + φ)``, changes with the angle
+    in either direction of motion. When a bias (or its equivalent Coulomb asymmetry) is named,
+    the torque is there; which shape it has is what held-out prediction decides
+    (:func:`_versus`), and that needs no torque regression of gravity's own: another missing
+    effect acting through the command (a drive delay in an open-loop chirp) can wreck the
+    regression's sin θ, cos θ columns while the simulation still follows the angle (truthgen
+    8181 gravity+delay-003: gravity's regression explained −48 % of the held-out torque at
+    0.038 N·m, the bias +58 %; refitted by simulation gravity came out at its true 0.078 N·m
+    over the 1.9 rad travel). Such a gravity — predicting better by simulation, as a torque effect
+    must — is refitted by simulation on the whole run and leads when it predicts each held-out
+    half better than the bias by :data:`MIN_HELD_OUT_GAIN`, the bar a significant gravity meets.
+    """
+    lead = rows[0] if rows else None
+    if lead is None or not lead.significant:
+        return False
+    for r in rows:
+        if r.significant or r.screen_ok or not _look_alike(r, lead) or not kstep_ok(r.effect, r.cmp):
+            continue
+        names = [k for k in r.model.free_param_names() if k.split(".")[0] in LOOK_ALIKE_REFIT[r.effect]]
+        fitted, se = refine(judge, r.model, names, max_evals=LOOK_ALIKE_REFIT_EVALS)
+        score = judge.score(fitted)
+        if score.sse >= lead.score.sse:
+            continue
+        r.model, r.score, r.cmp, r.stderr = fitted, score, judge.compare(base_score, score), se
+        r.versus.clear()
+        if min(_versus(r, lead, judge)) >= MIN_HELD_OUT_GAIN and _physical(r.effect, fitted, ctx):
+            r.passed = r.significant = True
+            rows.insert(0, rows.pop(rows.index(r)))
+            return True
+    return False
+
+
 def _delay_search(
     judge: KStepJudge, base: AxisModel, base_score: KStepScore, cand: AxisModel
 ) -> HeldOutSearch:
@@ -936,6 +974,7 @@ __all__ = [
     "finding",
     "judge_candidate",
     "look_alike_notes",
+    "promote_angle_dependence",
     "rank",
     "reconsider_backlash",
     "kstep_ok",
