@@ -94,8 +94,19 @@ def setup(apt_packages: list[str]) -> None:
                 f"{ROOT}[dev]",
             ]
         )
+        warm_up()
         STAMP.write_text(digest)
     apt_install(apt_packages)
+
+
+def warm_up() -> None:
+    """Compile the twin and the workbench into numba's cache (``tracker warm-up``), so that the
+    first diagnosis is not a minute and a half slower; a failure here is only a note (the
+    tests or the service show any real problem)."""
+    try:
+        run([str(PY), "-m", "tracker", "warm-up"])
+    except subprocess.CalledProcessError:
+        print("note: tracker warm-up failed; numba compiles on first use instead", flush=True)
 
 
 def install(prefix: Path, apt: bool = True) -> Path:
