@@ -262,7 +262,9 @@ def flank_changes(p: Mapping[str, float], truth: Mapping[str, Any], t: FloatArra
 
 def _travel_s(net_nm: float, j: float, b: float, count_rad: float) -> float:
     """Time a rigid axis from rest needs to cover ``count_rad`` under a net torque ``net_nm``
-    (inertia ``j``, viscous ``b``): θ(t) = (F/b)·(t − (1 − e^(−b·t/J))·J/b); inf if not positive."""
+    (inertia ``j``, viscous ``b``): θ(t) = (F/b)·(t − (1 − e^(−b·t/J))·J/b); inf if not positive.
+    (``tracker.workbench.diagnose.rests`` solves the same equation; this rating imports nothing
+    from ``tracker`` on purpose, so that it cannot share a mistake with the judge it rates.)"""
     if net_nm <= 0:
         return math.inf
     rigid = math.sqrt(2.0 * count_rad * j / net_nm)
