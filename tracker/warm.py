@@ -6,7 +6,7 @@ On a fresh install the first ``tracker model diagnose`` otherwise spends about 9
 (measured on this project's 2-core machine: 86 s cold, 2.7 s warm, EMPS's 25 s log) before it
 says anything. :func:`warm_up` runs the same code paths on a short log of the twin: a
 closed-loop run with hidden effects that make every candidate's simulation compile (a delay, a
-dead band, a belt), a diagnosis with every candidate and a fit.
+dead band, a belt), a diagnosis with every candidate, a fit and a comparison with its residual test.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ def warm_up(progress: Callable[[str], None] | None = None) -> WarmUp:
         return out
 
     from tracker.plant.model import AxisModel
+    from tracker.workbench.compare.compare import compare_model
     from tracker.workbench.diagnose.diagnose import diagnose
     from tracker.workbench.experiments.experiments import generate_measurement
     from tracker.workbench.fit.fit import fit_model
@@ -54,6 +55,8 @@ def warm_up(progress: Callable[[str], None] | None = None) -> WarmUp:
     stage("diagnose (every candidate)", lambda: diagnose(meas, base))  # type: ignore[arg-type]
     with_offset = AxisModel.for_axis("pan", ("offset",))
     stage("fit", lambda: fit_model(meas, with_offset))  # type: ignore[arg-type]
+    # what `tracker model diagnose` and `compare` also run: the residual test's replayed floor
+    stage("compare (residual test)", lambda: compare_model(meas, base, replicas=2))  # type: ignore[arg-type]
     return WarmUp(tuple(stages))
 
 

@@ -16,7 +16,13 @@ from tracker.warm import WarmUp
 PACKAGE = Path(tracker.__file__).resolve().parent
 # The kernels a diagnosis and a fit run: the k-step judge, the screening's load in a dead band,
 # the closed loop of the twin, the state observer.
-KERNEL_DIRS = ("workbench/diagnose", "workbench/experiments", "workbench/measurements", "plant")
+KERNEL_DIRS = (
+    "workbench/compare",
+    "workbench/diagnose",
+    "workbench/experiments",
+    "workbench/measurements",
+    "plant",
+)
 
 
 def _indexed(cache: Path, source_dir: Path) -> set[str]:
@@ -45,6 +51,7 @@ def test_warm_up_fills_an_empty_cache_with_the_workbenchs_kernels(tmp_path: Path
     for rel in KERNEL_DIRS:
         assert _indexed(cache, PACKAGE / rel), f"no compiled kernel of tracker/{rel} in {cache}"
     assert {"kstep", "screening"} <= _indexed(cache, PACKAGE / "workbench/diagnose")
+    assert "floor" in _indexed(cache, PACKAGE / "workbench/compare")  # the residual test's replay
 
 
 def test_the_warm_up_result_adds_its_stages() -> None:
