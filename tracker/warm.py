@@ -14,6 +14,9 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
+
+T = TypeVar("T")
 
 #: How long the warm-up log is (s): long enough for the diagnosis' windows and folds.
 WARM_LOG_S = 8.0
@@ -36,7 +39,7 @@ def warm_up(progress: Callable[[str], None] | None = None) -> WarmUp:
     say = progress or (lambda _text: None)
     stages: list[tuple[str, float]] = []
 
-    def stage(name: str, work: Callable[[], object]) -> object:
+    def stage(name: str, work: Callable[[], T]) -> T:
         say(f"{name} ...")
         t0 = time.perf_counter()
         out = work()
@@ -52,11 +55,11 @@ def warm_up(progress: Callable[[str], None] | None = None) -> WarmUp:
 
     base = AxisModel.for_axis("pan")
     meas = stage("the twin's closed loop", lambda: generate_measurement(base, WARM_LOG_S, seed=1))
-    stage("diagnose (every candidate)", lambda: diagnose(meas, base))  # type: ignore[arg-type]
+    stage("diagnose (every candidate)", lambda: diagnose(meas, base))
     with_offset = AxisModel.for_axis("pan", ("offset",))
-    stage("fit", lambda: fit_model(meas, with_offset))  # type: ignore[arg-type]
+    stage("fit", lambda: fit_model(meas, with_offset))
     # what `tracker model diagnose` and `compare` also run: the residual test's replayed floor
-    stage("compare (residual test)", lambda: compare_model(meas, base, replicas=2))  # type: ignore[arg-type]
+    stage("compare (residual test)", lambda: compare_model(meas, base, replicas=2))
     return WarmUp(tuple(stages))
 
 

@@ -199,16 +199,20 @@ def diagnose(
     # The rests judged against the Coulomb torque of the moving data (the torque regression):
     # a model fitted to the whole run may have absorbed part of a missing break-away.
     moving_coulomb = float(base_values.get("coulomb.torque", base_model.params["coulomb.torque"]))
+    breakaway = analyse_breakaway(meas, base_model)
     ctx = EvidenceContext(
         sig,
         design,
         base_reg,
-        analyse_breakaway(meas, base_model),
+        breakaway,
         model,
         (rest_err, float(at_rest.mean())),
         analyse_rests(sig, base_reg, base_model, moving_coulomb),
         analyse_start_lags(sig, base_model, moving_coulomb, slow_residual_nm(sig, base_reg)),
-        sliding_coulomb(design, model, base_reg),
+        # what a measured break-away is judged over (two more low-passes: only when there is one)
+        sliding_coulomb(design, model, base_reg)
+        if breakaway is not None and breakaway.static_excess_se > 0
+        else None,
     )
     # A second round judges a torque effect's share of the residual beyond the encoder's own;
     # not the first round's look again with its computational latency added (``refit_present``
