@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 import zlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -72,6 +72,11 @@ N_CLEAN = 50
 N_PER_EFFECT = 11
 N_PER_PAIR = 5
 MAX_ATTEMPTS = 12
+# Matrix seeds whose sets were generated and scored before the viscous asymmetry was drawn as a
+# torque and redrawn until resolvable (session 13): they keep their old draw (b·[2, 3.5], most of
+# it below the logs' resolution), so that their logs, the figures and regression tests cited on
+# them, stay reproducible.
+LEGACY_DRAW_SEEDS = frozenset({20250909, 777, 2411, 4242, 6006, 7171, 8080, 8181, 9191, 9393, 31337})
 _DEBUG = False
 
 
@@ -265,8 +270,13 @@ def draw_effect(
     if eff == "coulomb_asymmetry":
         k = u(0.5, 0.7) if rng.random() < 0.5 else u(1.4, 1.9)
         return {"coulomb_asymmetry.negative": fc * k}
-    if eff == "viscous_asymmetry":
+    if eff == "viscous_asymmetry" and MATRIX_SEED in LEGACY_DRAW_SEEDS:
         return {"viscous_asymmetry.negative": b * u(2.0, 3.5)}
+    if eff == "viscous_asymmetry":
+        # Sized as a torque at 1 rad/s, 10–30 % of the Coulomb torque: the rig's own viscous
+        # torque is about 1 % of Coulomb there, so a multiple of b (the old 2–3.5 b) was drawn
+        # below every log's resolution (session 12: z 0.1–4 on all six held-out logs).
+        return {"viscous_asymmetry.negative": b + fc * u(0.1, 0.3)}
     if eff == "offset":
         return {"offset.torque": float(rng.choice([-1.0, 1.0])) * u(0.012, 0.03)}
     if eff == "stiction":
@@ -417,6 +427,19 @@ def check_log(log: Log, spec: CaseSpec, axis: TrueAxis) -> list[str]:
     return bad
 
 
+def _unresolvable(log: Log, truth: Mapping[str, Any]) -> list[str]:
+    """A single hidden viscous asymmetry the log cannot resolve (``bench/detectability.py``, which
+    imports nothing of the workbench, rates it below its ``MIN_Z``): the case is drawn again, so
+    that the effect is present in the log, not lost under its noise (legacy seeds excepted)."""
+    if list(truth["hidden"]) != ["viscous_asymmetry"] or MATRIX_SEED in LEGACY_DRAW_SEEDS:
+        return []
+    from bench.detectability import MIN_Z, detectability
+
+    r = detectability(truth, log.t, log.u, log.theta)
+    z = float(r["value"])
+    return [] if z >= MIN_Z else [f"viscous asymmetry at {z:.1f} standard errors (< {MIN_Z:g})"]
+
+
 def generate_case(case_id: str, refine: float = 1.0) -> tuple[Log, dict[str, Any]]:
     """Simulate case ``case_id`` of the matrix.
 
@@ -514,7 +537,7 @@ def generate_case(case_id: str, refine: float = 1.0) -> tuple[Log, dict[str, Any
         if _DEBUG:
             print(case_id, attempt, problems)
         if not problems:
-            truth = {
+            truth: dict[str, Any] = {
                 "id": spec.id,
                 "split": spec.split,
                 "axis": spec.axis,
@@ -535,5 +558,7 @@ def generate_case(case_id: str, refine: float = 1.0) -> tuple[Log, dict[str, Any
                 "attempt": attempt,
                 "duration_s": DURATION_S,
             }
-            return log, truth
+            problems = _unresolvable(log, truth)
+            if not problems:
+                return log, truth
     raise RuntimeError(f"{case_id}: no good log after {MAX_ATTEMPTS} attempts ({'; '.join(problems)})")
