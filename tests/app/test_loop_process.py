@@ -202,20 +202,35 @@ def test_a_killed_loop_process_is_a_fault_and_the_service_keeps_serving(
             svc_of(rig).engine.release()
 
 
+def _unstalled(fn: Any, *args: Any) -> Any:  # noqa: ANN401
+    """``fn(*args)``, again (up to 5 times) when the loop's process refused it as stalled: on a
+    machine loaded far past its cores (a full suite beside other jobs) the process can go a
+    second without a tick, and the refusal is then the right answer, not what a test of the
+    restore checks (seen once: "no tick for 1.2 s: model refused")."""
+    for attempt in range(5):
+        try:
+            return fn(*args)
+        except (AssertionError, DriverFault) as e:
+            if "stalled" not in str(e) or attempt == 4:
+                raise
+            time.sleep(0.5)
+    raise AssertionError("unreachable")
+
+
 def test_stored_model_gains_and_tracking_reach_the_loops_process_at_restart(tmp_path: Path) -> None:
     """The service restores its stored settings through the pipe before the loop's first tick."""
     from .test_restart import change_everything
 
     for rig in make_rig(tmp_path, loop_process=True):
-        before = change_everything(rig)  # a model (designed in the service), gains, tracking on
+        before = _unstalled(change_everything, rig)  # a model (designed in the service), gains, tracking on
         engine = svc_of(rig).engine
-        assert engine.call("model", "pan").effects == ("offset",)
-        assert engine.call("gains", "tilt") == before["tilt_gains"]
+        assert _unstalled(engine.call, "model", "pan").effects == ("offset",)
+        assert _unstalled(engine.call, "gains", "tilt") == before["tilt_gains"]
     for rig in make_rig(tmp_path, loop_process=True):
         engine = svc_of(rig).engine
-        model = engine.call("model", "pan")  # what the loop's process holds, not the proxy's copy
+        model = _unstalled(engine.call, "model", "pan")  # what the loop's process holds, not the proxy's copy
         assert model.effects == ("offset",)
         assert model.params == pytest.approx(before["pan_model"].params)
-        assert engine.call("gains", "pan") == before["pan_gains"]
-        assert engine.call("gains", "tilt") == before["tilt_gains"]
+        assert _unstalled(engine.call, "gains", "pan") == before["pan_gains"]
+        assert _unstalled(engine.call, "gains", "tilt") == before["tilt_gains"]
         assert status(rig)["tracking"] is True and not status(rig)["settings_warnings"]
