@@ -30,7 +30,10 @@ def _freeze(params: Mapping[str, float]) -> MappingProxyType[str, float]:
 
 @dataclass(frozen=True, slots=True)
 class AxisModel:
-    """Base model J·θ'' = K·clip(u, ±10 V) − b·θ' − Fc·sign(θ') (seed eq. 3.2) plus effects.
+    """Base model J·θ'' = K·u − b·θ' − Fc·sign(θ') (seed eq. 3.2) plus effects.
+
+    The drive's rail clips u (the rig's ±10 V amplifier; a log's own in the workbench:
+    :func:`tracker.plant.effects.saturation.drive_rail_v`).
 
     ``effects`` lists the effects added to the base, in the order they were added.
     ``params`` holds every parameter of the base and of those effects, keyed

@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from tracker.errors import ConfigError, DataError
 from tracker.plant.effects import CATALOGUE, is_generic
 from tracker.plant.effects.quantization import SEED_ENCODER_STEP_RAD
+from tracker.plant.effects.saturation import clip_level_v, drive_rail_v
 from tracker.plant.model import AxisModel
 from tracker.units import AMPLIFIER_LIMIT_V
 
@@ -97,14 +98,21 @@ def generic_torque_table(
 
 
 def pack_params(
-    model: AxisModel, dt_s: float, quantize: bool = True, range_rad: tuple[float, float] = (0.0, 0.0)
+    model: AxisModel,
+    dt_s: float,
+    quantize: bool = True,
+    range_rad: tuple[float, float] = (0.0, 0.0),
+    rail_v: float = AMPLIFIER_LIMIT_V,
 ) -> FloatArray:
     """Pack ``model`` into the simulator's parameter vector for sample time ``dt_s``.
 
-    Disabled effects get neutral values (no offset, symmetric friction, ±10 V, ...), so the
-    compiled code needs no branches per effect. Generic effects become a torque table over
-    ``range_rad`` ± 2π (see :func:`generic_torque_table`). Returns shape (N_PACKED + m,), m the
-    table's length (0 without generic effects).
+    Disabled effects get neutral values (no offset, symmetric friction, the drive's rail, ...),
+    so the compiled code needs no branches per effect. The command is clipped at ``rail_v`` (the
+    drive's rail, V: the rig's amplifier by default; a log's own,
+    :func:`~tracker.plant.effects.saturation.drive_rail_v`, in the workbench) or lower at a
+    saturation's limit. Generic effects become a torque table over ``range_rad`` ± 2π (see
+    :func:`generic_torque_table`). Returns shape (N_PACKED + m,), m the table's length (0
+    without generic effects).
     """
     p = model.params
     P = np.zeros(N_PACKED)
@@ -125,7 +133,7 @@ def pack_params(
     P[I_GT] = p.get("gravity.torque", 0.0)
     P[I_GPH] = p.get("gravity.phase", 0.0)
     P[I_DELAY] = p.get("delay.seconds", 0.0)
-    P[I_ULIM] = min(p.get("saturation.limit", AMPLIFIER_LIMIT_V), AMPLIFIER_LIMIT_V)
+    P[I_ULIM] = clip_level_v(p, rail_v)
     P[I_RA] = p.get("ripple.amplitude", 0.0)
     P[I_RN] = p.get("ripple.cycles_per_rev", 1.0)
     P[I_RPH] = p.get("ripple.phase", 0.0)
@@ -442,12 +450,14 @@ def simulate(
     """Simulate ``model`` driven by the command ``u_v`` (V, shape (n,)) sampled every ``dt_s``.
 
     ``x0`` is the initial state (see :func:`initial_state`); ``disturbance_nm`` an external load
-    torque per sample, shape (n,). Generic effects are tabulated over ±2π around the start
-    angle (see :func:`pack_params`). Returns a :class:`SimResult`.
+    torque per sample, shape (n,). The drive delivers the command as given (its rail,
+    :func:`~tracker.plant.effects.saturation.drive_rail_v`, is never below it); only a
+    saturation clips it. Generic effects are tabulated over ±2π around the start angle (see
+    :func:`pack_params`). Returns a :class:`SimResult`.
     """
     u = _check_input(u_v, dt_s)
     x = initial_state() if x0 is None else np.asarray(x0, dtype=float)
-    P = pack_params(model, dt_s, quantize, (float(x[0]), float(x[0])))
+    P = pack_params(model, dt_s, quantize, (float(x[0]), float(x[0])), drive_rail_v(u))
     dist = np.zeros(0) if disturbance_nm is None else np.ascontiguousarray(disturbance_nm, dtype=float)
     if dist.size and dist.shape != u.shape:
         raise DataError(f"disturbance has shape {dist.shape}, command has {u.shape}")
@@ -465,7 +475,8 @@ def predict_windows(
     x0s: FloatArray,
 ) -> FloatArray:
     """Simulate many windows of ``horizon`` samples, window w starting at sample ``starts[w]``
-    from state ``x0s[w]`` (shape (m, 4)) under the measured command. Motor angle, unquantized.
+    from state ``x0s[w]`` (shape (m, 4)) under the measured command (delivered as in
+    :func:`simulate`). Motor angle, unquantized.
 
     Returns shape (m, horizon); column 0 is the starting angle. This is the k-step-ahead
     predictor's hot path.
@@ -474,7 +485,7 @@ def predict_windows(
     st = np.ascontiguousarray(starts, dtype=np.int64)
     x0 = np.ascontiguousarray(x0s, dtype=float).reshape(-1, STATE_SIZE)
     span = (float(x0[:, 0].min()), float(x0[:, 0].max())) if x0.size else (0.0, 0.0)
-    P = pack_params(model, dt_s, quantize=False, range_rad=span)
+    P = pack_params(model, dt_s, quantize=False, range_rad=span, rail_v=drive_rail_v(u))
     return _run_windows(P, u, float(dt_s), st, int(horizon), x0)
 
 

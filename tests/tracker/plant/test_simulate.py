@@ -152,3 +152,28 @@ def test_friction_never_reverses_motion_and_energy_stays_bounded(volts: list[flo
     bound = m.gain_nm_per_v * 10.0 / m.params["viscous.b"]
     assert np.all(np.isfinite(r.theta_rad))
     assert np.max(np.abs(r.omega_rad_s)) <= bound
+
+
+def test_a_command_beyond_the_rig_amplifier_is_delivered_and_a_saturation_still_clips() -> None:
+    """Regression: the simulator clipped every command at the rig's ±10 V, so a log of a ±24 V
+    drive commanding 16 V was simulated at 10 V. A given command is delivered as it is (its rail,
+    ``drive_rail_v``, is never below it); only the saturation effect clips it."""
+    m = AxisModel.for_axis("pan")
+    k, b, fc = m.gain_nm_per_v, m.params["viscous.b"], m.params["coulomb.torque"]
+    assert steady_speed(m, 16.0, 40.0) == pytest.approx((k * 16.0 - fc) / b, rel=0.01)
+    clipped = AxisModel.for_axis("pan", ["saturation"], {"saturation.limit": 12.0})
+    assert steady_speed(clipped, 16.0, 40.0) == pytest.approx((k * 12.0 - fc) / b, rel=0.01)
+
+
+def test_the_rigs_twin_keeps_its_amplifiers_rail() -> None:
+    """The closed loop and the simulated rig pack the plant without a rail: the rig's ±10 V."""
+    from tracker.plant.effects.saturation import drive_rail_v
+    from tracker.plant.simulate import I_ULIM, pack_params
+    from tracker.units import AMPLIFIER_LIMIT_V
+
+    m = AxisModel.for_axis("pan")
+    assert pack_params(m, DT)[I_ULIM] == AMPLIFIER_LIMIT_V
+    assert pack_params(m, DT, rail_v=drive_rail_v(np.array([3.0, -24.0])))[I_ULIM] == 24.0
+    assert drive_rail_v(np.array([3.0, -7.0])) == AMPLIFIER_LIMIT_V  # a log within the rig's rail
+    sat = AxisModel.for_axis("pan", ["saturation"], {"saturation.limit": 30.0})
+    assert pack_params(sat, DT, rail_v=24.0)[I_ULIM] == 24.0  # above the rail it clips nothing more

@@ -33,6 +33,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from tracker.errors import ConfigError, DataError
+from tracker.plant.effects.saturation import drive_rail_v
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import STATE_SIZE, advance, pack_params, simulate
 from tracker.workbench.compare.consistency import ResidualVerdict, judge_residual
@@ -142,7 +143,7 @@ def horizon_samples(horizon_s: float | None, dt_s: float, n: int) -> int:
 
 def predict_k_step(meas: Measurement, model: AxisModel, est: StateEstimate, k: int) -> FloatArray:
     """k-step-ahead prediction of every sample from the estimated states. Shape (n,)."""
-    P = pack_params(model, meas.dt_s, quantize=False)
+    P = pack_params(model, meas.dt_s, quantize=False, rail_v=drive_rail_v(meas.u_v))
     x0s = est.initial_states(np.arange(meas.n))
     return _k_step_predict(P, np.ascontiguousarray(meas.u_v, dtype=float), float(meas.dt_s), x0s, int(k))
 

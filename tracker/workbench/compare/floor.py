@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from tracker.plant.effects.saturation import drive_rail_v
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import advance, pack_params
 from tracker.workbench.compare.regimes import REGIME_NAMES, regime_masks
@@ -247,7 +248,9 @@ def replay_run(
     kp, kd = J * wc * wc / K, 2.0 * J * wc / K
     x0 = est.initial_states(np.array([0]))[0]
     span = (float(np.min(meas.theta_rad)) - 0.5, float(np.max(meas.theta_rad)) + 0.5)
-    P = pack_params(model, dt, quantize=False, range_rad=span)
+    # The replica's drive is the log's: its tracking pull may ask beyond the log's command and
+    # gets no more than the log's rail (the rig amplifier's at least).
+    P = pack_params(model, dt, quantize=False, range_rad=span, rail_v=drive_rail_v(meas.u_v))
     u, th = _replay(
         P,
         np.ascontiguousarray(meas.u_v, dtype=float),

@@ -18,7 +18,6 @@ from numpy.typing import NDArray
 from tracker.errors import JobCancelled
 from tracker.plant.effects import generic_effects, get_effect
 from tracker.plant.model import AxisModel
-from tracker.units import AMPLIFIER_LIMIT_V
 from tracker.workbench.diagnose.screening import Screen, Structure, TorqueDesign, gravity_fall, screen
 from tracker.workbench.fit import generic
 from tracker.workbench.fit.search import whole_is_enough
@@ -163,8 +162,10 @@ def screen_missing_effects(
             out[effect] = screen(effect, design, model, base, base_reg, st, 2, {"seconds": d}, reg)
         elif effect == "saturation":
             au = np.abs(sig.u_v[sig.use])
-            grid = np.unique(np.clip(np.quantile(au, np.linspace(0.6, 0.995, 16)), 0.05, AMPLIFIER_LIMIT_V))
-            grid = grid[grid < 0.999 * AMPLIFIER_LIMIT_V]
+            # Levels at the drive's rail clip nothing the log commands.
+            rail = design.rail_v
+            grid = np.unique(np.clip(np.quantile(au, np.linspace(0.6, 0.995, 16)), 0.05, rail))
+            grid = grid[grid < 0.999 * rail]
             if grid.size < 3:
                 continue
             st, reg, lim = _refine_1d(

@@ -23,6 +23,7 @@ from scipy import optimize
 
 from tracker.errors import JobCancelled
 from tracker.plant.effects import get_param
+from tracker.plant.effects.saturation import drive_rail_v
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import (
     I_BW,
@@ -223,7 +224,7 @@ class KStepJudge:
         offsets = np.linspace(-half, half, BACKLASH_STARTS)
         speed = float(np.percentile(np.abs(self.omega_s), 90)) or 1.0
         vrels = speed * np.array([-0.1, 0.0, 0.1])
-        P = pack_params(model, self.dt, quantize=False)
+        P = pack_params(model, self.dt, quantize=False, rail_v=drive_rail_v(self.u))
         return _shoot_windows(
             P, self.u, self.dt, self.starts, self.k + 1, self.k_settle, x0, self.y, offsets, vrels
         )

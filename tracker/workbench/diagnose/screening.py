@@ -24,8 +24,8 @@ from scipy import signal
 
 from tracker.errors import DataError
 from tracker.plant.effects import get_effect, get_param, is_generic
+from tracker.plant.effects.saturation import clip_level_v, drive_rail_v
 from tracker.plant.model import AxisModel
-from tracker.units import AMPLIFIER_LIMIT_V
 from tracker.workbench.fit import generic
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.idim import (
@@ -162,6 +162,7 @@ class TorqueDesign:
         # :func:`load_fall` and :func:`_play`.
         self.load_fall = load_fall
         self.sgn = np.sign(sig.omega_rad_s)
+        self.rail_v = drive_rail_v(sig.u_v)
         self._cache: dict[tuple[object, ...], FloatArray] = {}
 
     def _col(self, key: tuple[object, ...], make: Callable[[], FloatArray]) -> FloatArray:
@@ -170,15 +171,16 @@ class TorqueDesign:
             self._cache[key] = self.sig.lowpass(make())
         return self._cache[key]
 
-    def torque(self, delay_s: float, limit_v: float) -> FloatArray:
-        """K·L[sat(u)](t − d − h/2), full rate.
+    def torque(self, delay_s: float, limit_v: float | None = None) -> FloatArray:
+        """K·L[sat(u)](t − d − h/2), full rate; ``limit_v`` a saturation's limit (None: no
+        saturation, the command as logged: the drive's rail is never below it).
 
         The command is held over each sample period [t_k, t_k + h), so the torque centred on
         t_k (where the centred derivatives put α) is the mean of u_{k−1} and u_k: the samples
         are half a period late against the torque they apply (the logging convention, not a
         delay of the drive).
         """
-        lim = min(limit_v, AMPLIFIER_LIMIT_V)
+        lim = self.rail_v if limit_v is None else clip_level_v({"saturation.limit": limit_v}, self.rail_v)
         u = self._col(("u", round(lim, 6)), lambda: np.clip(self.sig.u_v, -lim, lim))
         return self.gain * delayed(self.sig.t_s, u, delay_s + 0.5 * self.sig.dt_s)
 
@@ -271,9 +273,7 @@ class TorqueDesign:
         st = structure.settings
         y = self.torque(
             st.get("delay.seconds", 0.0) if "delay" in structure.effects else 0.0,
-            st.get("saturation.limit", AMPLIFIER_LIMIT_V)
-            if "saturation" in structure.effects
-            else AMPLIFIER_LIMIT_V,
+            st.get("saturation.limit") if "saturation" in structure.effects else None,
         )
         for e in structure.effects:
             if is_generic(e):

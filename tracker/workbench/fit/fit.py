@@ -38,6 +38,7 @@ from scipy.optimize import least_squares
 
 from tracker.errors import ConfigError, JobCancelled
 from tracker.plant.effects import get_param
+from tracker.plant.effects.saturation import drive_rail_v
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.compare.compare import horizon_samples, score_model
@@ -168,6 +169,16 @@ def default_free(model: AxisModel, fit_gain: bool = False) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _bounds(name: str, rail_v: float) -> tuple[float, float]:
+    """The bounds of parameter ``name`` in a fit to a log whose drive's rail is ``rail_v`` (V):
+    the catalogue's, and a saturation's limit no higher than the rail (above it the limit
+    clips nothing the log commands)."""
+    prm = get_param(name)
+    if name == "saturation.limit":
+        return prm.lower, min(prm.upper, rail_v)
+    return prm.lower, prm.upper
+
+
 @dataclass(frozen=True, slots=True)
 class _Coords:
     """Optimizer coordinates: scaled parameters, (cos, sin) components, and the gain."""
@@ -176,9 +187,10 @@ class _Coords:
     scale: FloatArray
     lower: FloatArray
     upper: FloatArray
+    rail_v: float  # the log's drive rail (:func:`drive_rail_v`): bounds a saturation's limit
 
     @classmethod
-    def build(cls, model: AxisModel, free: Sequence[str], fit_gain: bool) -> _Coords:
+    def build(cls, model: AxisModel, free: Sequence[str], fit_gain: bool, rail_v: float) -> _Coords:
         names: list[str] = []
         lo: list[float] = []
         hi: list[float] = []
@@ -196,10 +208,10 @@ class _Coords:
                     hi.append(np.inf)
                     scale.append(amp)
                 continue
-            prm = get_param(k)
             names.append(k)
-            lo.append(prm.lower)
-            hi.append(prm.upper)
+            bounds = _bounds(k, rail_v)
+            lo.append(bounds[0])
+            hi.append(bounds[1])
             scale.append(_param_scale(model, k))
         if fit_gain:
             names.append("gain")
@@ -207,7 +219,7 @@ class _Coords:
             hi.append(np.inf)
             scale.append(model.gain_nm_per_v)
         s = np.array(scale)
-        return cls(tuple(names), s, np.array(lo) / s, np.array(hi) / s)
+        return cls(tuple(names), s, np.array(lo) / s, np.array(hi) / s, rail_v)
 
     def encode(self, model: AxisModel) -> FloatArray:
         p = model.params
@@ -231,8 +243,8 @@ class _Coords:
         # came back as 0.49999999999999994 and the model refused it).
         for n in self.names:
             if n in vals and not n.endswith((".cos", ".sin")):
-                prm = get_param(n)
-                vals[n] = min(max(vals[n], prm.lower), prm.upper)
+                lower, upper = _bounds(n, self.rail_v)
+                vals[n] = min(max(vals[n], lower), upper)
         for eff, (amp_k, ph_k) in _POLAR.items():
             if eff + ".cos" in vals:
                 c, s = vals.pop(eff + ".cos"), vals.pop(eff + ".sin")
@@ -617,7 +629,7 @@ def fit_model(
             fit_k=k,
         )
 
-    coords = _Coords.build(model0, free_t, fit_gain)
+    coords = _Coords.build(model0, free_t, fit_gain, drive_rail_v(meas.u_v))
     starts = window_starts(meas.n, k)
     # Errors inside a window are smooth in time: ~10 points per window carry its information
     # and keep the least-squares algebra small; every window (every sample's dynamics) is simulated.

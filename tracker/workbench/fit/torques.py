@@ -22,8 +22,8 @@ from scipy.signal import butter, sosfiltfilt
 
 from tracker.errors import DataError
 from tracker.plant.effects import CATALOGUE, is_generic
+from tracker.plant.effects.saturation import clip_level_v, drive_rail_v
 from tracker.plant.model import AxisModel
-from tracker.units import AMPLIFIER_LIMIT_V
 from tracker.workbench.fit import generic
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.states import StateEstimate
@@ -46,13 +46,14 @@ def replace_params(model: AxisModel, updates: Mapping[str, float]) -> AxisModel:
 
 
 def effective_command_v(model: AxisModel, u_v: FloatArray, dt_s: float) -> FloatArray:
-    """The command the motor gets: delayed by ``delay.seconds`` (linear interpolation), clipped."""
+    """The command the motor gets: delayed by ``delay.seconds`` (linear interpolation), clipped
+    at the saturation's limit (never below what ``u_v`` asks for without one)."""
     u = np.asarray(u_v, dtype=float)
+    lim = clip_level_v(model.params, drive_rail_v(u))
     d = model.params.get("delay.seconds", 0.0)
     if d > 0.0:
         idx = np.arange(u.size) - d / dt_s
         u = np.interp(idx, np.arange(u.size), u)
-    lim = min(model.params.get("saturation.limit", AMPLIFIER_LIMIT_V), AMPLIFIER_LIMIT_V)
     clipped: FloatArray = np.clip(u, -lim, lim)
     return clipped
 

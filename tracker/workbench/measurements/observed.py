@@ -20,6 +20,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from tracker.errors import DataError
+from tracker.plant.effects.saturation import drive_rail_v
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import pack_params, predict_windows, step_state
 from tracker.workbench.measurements.data import Measurement
@@ -160,9 +161,10 @@ def _predict(
     shift[:, 1] = 0.5 * est.dt_s * est.alpha_rad_s2[np.maximum(s - 1, 0)]
     span = (float(motor[:, 0].min()), float(motor[:, 0].max())) if s.size else (0.0, 0.0)
     out = np.empty((s.size, int(horizon)))
+    rail = drive_rail_v(u)
     done = _observed_windows(
-        pack_params(model, dt, quantize=False),
-        pack_params(model, dt, quantize=False, range_rad=span),
+        pack_params(model, dt, quantize=False, rail_v=rail),
+        pack_params(model, dt, quantize=False, range_rad=span, rail_v=rail),
         u,
         y,
         dt,

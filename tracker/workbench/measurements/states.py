@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from tracker.plant.effects.saturation import drive_rail_v
 from tracker.plant.model import AxisModel
 from tracker.plant.simulate import STATE_SIZE, advance, pack_params
 from tracker.workbench.measurements.data import Measurement
@@ -376,7 +377,7 @@ def observe_states(
     traversal the model knows the light motor crosses the gap while the load coasts.
     """
     dt = meas.dt_s
-    P = pack_params(model, dt, quantize=False)
+    P = pack_params(model, dt, quantize=False, rail_v=drive_rail_v(meas.u_v))
     p = math.exp(-2.0 * math.pi * bandwidth_hz * dt)
     y = np.ascontiguousarray(meas.theta_rad, dtype=float)
     x0 = np.array([y[0], 0.0, y[0], 0.0])
