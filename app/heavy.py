@@ -52,7 +52,9 @@ def fitter_extra(res: Any) -> dict[str, Any]:  # noqa: ANN401 - a FitResult
     return {
         "params": dict(res.params),
         "stderr": dict(res.stderr),
-        "certainty": [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)],
+        "certainty": [
+            c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated, res.upper_bounds)
+        ],
         "converged": bool(res.converged),
         "free": list(res.free),
     }

@@ -201,7 +201,7 @@ def format_fit(meas: Measurement, res: FitResult) -> str:
         "",
         f"{'parameter':<28} {'value':>12} {'± stderr':>11} {'rel.':>6} {'start':>12}  unit",
     ]
-    cert = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated)}
+    cert = {c.name: c for c in parameter_certainty(res.params, res.stderr, res.correlated, res.upper_bounds)}
     for k, v in res.params.items():
         se = res.stderr.get(k)
         c = cert.get(k)
@@ -278,7 +278,9 @@ def run_fit(args: argparse.Namespace) -> int:
     )
     from tracker.cli.model_history import record_version, versions_in, write_plot
 
-    certainty = [c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated)]
+    certainty = [
+        c.to_dict() for c in parameter_certainty(res.params, res.stderr, res.correlated, res.upper_bounds)
+    ]
     compared = None
     if (args.plot or not args.no_keep) and args.replicas > 0:
         # the residual test of the fitted model: its error budget and the pictures

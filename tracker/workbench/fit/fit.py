@@ -123,6 +123,9 @@ class FitResult:
     # The horizon the parameters were fitted over (longer than ``horizon_s`` on a coarse encoder
     # when none was asked: :func:`fit_horizon_samples`); the fit % is reported at ``horizon_s``.
     fit_horizon_s: float = 0.0
+    # Upper bounds this log sets below the catalogue's: a saturation's limit at the log's drive
+    # rail (:func:`drive_rail_v`) clips nothing (:func:`parameter_certainty` flags it there).
+    upper_bounds: dict[str, float] = field(default_factory=dict)
 
     @property
     def warnings(self) -> tuple[str, ...]:
@@ -841,6 +844,7 @@ def _finish(
         elapsed_s=time.perf_counter() - t0,
         correlated=correlated,
         fit_horizon_s=fit_k * meas.dt_s,
+        upper_bounds={"saturation.limit": drive_rail_v(meas.u_v)} if model.has("saturation") else {},
     )
 
 

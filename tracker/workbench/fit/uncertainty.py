@@ -53,8 +53,9 @@ class ParameterCertainty:
 AT_BOUND_FRACTION = 1e-3
 
 
-def _at_bound(name: str, value: float) -> str | None:
-    """``"lower bound 0.5 Hz"`` when a fitted value sits on a catalogue bound, else None.
+def _at_bound(name: str, value: float, upper: float | None = None) -> str | None:
+    """``"lower bound 0.5 Hz"`` when a fitted value sits on a catalogue bound (or on ``upper``,
+    a lower one the log set), else None.
 
     The standard error there is one-sided and means nothing: a belt frequency pinned at its
     lowest value with a tight error is the fit leaving the model's range, not a measurement.
@@ -70,7 +71,8 @@ def _at_bound(name: str, value: float) -> str | None:
         return None
     if not math.isfinite(value):
         return None
-    for which, bound in (("lower", prm.lower), ("upper", prm.upper)):
+    top = prm.upper if upper is None else min(prm.upper, upper)
+    for which, bound in (("lower", prm.lower), ("upper", top)):
         if bound != 0.0 and math.isfinite(bound) and abs(value - bound) <= AT_BOUND_FRACTION * abs(bound):
             return f"{which} bound {bound:g} {prm.unit}"
     return None
@@ -80,8 +82,12 @@ def parameter_certainty(
     params: Mapping[str, float],
     stderr: Mapping[str, float],
     correlated: tuple[tuple[str, str, float], ...] = (),
+    upper_bounds: Mapping[str, float] | None = None,
 ) -> list[ParameterCertainty]:
-    """Every parameter with a standard error, flagged when this run does not pin it."""
+    """Every parameter with a standard error, flagged when this run does not pin it.
+
+    ``upper_bounds``: bounds the log set below the catalogue's (``FitResult.upper_bounds``: a
+    saturation's limit at the drive's rail, where it clips nothing)."""
     partners: dict[str, list[str]] = {}
     for a, b, c in correlated:
         partners.setdefault(a, []).append(f"{b} (r = {c:+.2f})")
@@ -98,7 +104,7 @@ def parameter_certainty(
                 if math.isfinite(rel)
                 else "no finite standard error"
             )
-        bound = _at_bound(name, value)
+        bound = _at_bound(name, value, (upper_bounds or {}).get(name))
         if bound is not None:
             reasons.append(f"at the catalogue's {bound} (the fit ran out of the model's range there)")
         flagged = bool(reasons)

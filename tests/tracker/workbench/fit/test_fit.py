@@ -53,6 +53,8 @@ def test_fit_recovers_each_effects_parameters_within_10_percent(effect: str) -> 
         _assert_close(name, res.params[name], true.params[name])
     assert res.converged
     assert set(res.stderr) >= {k for k in CASES[effect] if k != "ripple.cycles_per_rev"}
+    # A saturation's limit is bounded by the log's drive rail (the twin's ±10 V amplifier here).
+    assert res.upper_bounds == ({"saturation.limit": 10.0} if effect == "saturation" else {})
 
 
 @pytest.mark.parametrize("width_rad", [0.005, 0.02])

@@ -69,8 +69,12 @@ def test_bounds_are_judged_on_their_own_scale_and_phases_have_none() -> None:
         for c in parameter_certainty(
             {"stiction.velocity": 0.03, "ripple.phase": 3.1415, "saturation.limit": 10.0},
             {"stiction.velocity": 1e-4, "ripple.phase": 0.01, "saturation.limit": 0.01},
+            upper_bounds={"saturation.limit": 10.0},  # the rail of a log within ±10 V
         )
     }
     assert not out["stiction.velocity"].poorly_determined
     assert not out["ripple.phase"].poorly_determined
     assert "upper bound 10 V" in out["saturation.limit"].reason
+    # Without the log's rail the catalogue admits any drive's limit (up to 1e6 V).
+    alone = parameter_certainty({"saturation.limit": 10.0}, {"saturation.limit": 0.01})
+    assert not alone[0].poorly_determined
