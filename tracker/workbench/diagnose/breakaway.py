@@ -196,6 +196,32 @@ def analyse_breakaway(meas: Measurement, model: AxisModel) -> BreakAway | None:
     )
 
 
+def _broke_at_a_step(u: FloatArray, at: int) -> bool:
+    """Whether the command the axis received at its break, ``u[at]``, sits on a plateau the
+    command stepped onto by more than ``MAX_JUMP_V``.
+
+    Static friction gives way only while the torque changes: an axis held at rest under a torque
+    stays held while that torque is constant. A break placed on a plateau (the command constant
+    over that sample and a neighbour) therefore happened where the plateau began, give or take
+    the travel's guess (where in its count the axis sat); there the torque went from the value
+    before the step, which the axis held, to the plateau's, which it did not, and the break-away
+    lies somewhere between the two. After a small step (a staircase, a quantized command) that
+    is a level; after a step larger than a creeping start may jump, it says only that the
+    break-away is below the plateau. A voltage step behind a drive delay breaks away at the
+    step's level a fixed time after the step: read as a level, every such start measured the
+    step's height over Coulomb (a delay-only step log's second round: +0.094 ± 0.025 N·m in 28
+    starts, whose command was flat to rounding through the 20 ms the creep test looks at).
+    A closed-loop command changes at every sample and is never on a plateau."""
+    n = u.size
+    on_plateau = (at > 0 and u[at - 1] == u[at]) or (at + 1 < n and u[at + 1] == u[at])
+    if not on_plateau:
+        return False
+    p0 = at
+    while p0 > 0 and u[p0 - 1] == u[at]:
+        p0 -= 1
+    return p0 == 0 or abs(float(u[p0] - u[p0 - 1])) > MAX_JUMP_V
+
+
 def _break_torque_nm(
     meas: Measurement, model: AxisModel, first_moved: int, rest: int, direction: float, distance: float
 ) -> float:
@@ -239,6 +265,8 @@ def _break_torque_nm(
         at = int(math.floor(k0 + (lead - 0.5) - travel - delay))
         if at < 0 or at >= first_moved:
             return level
+        if _broke_at_a_step(meas.u_v, at):
+            return math.nan  # the axis broke at a step to this level: its break-away is below it
         level = direction * (model.gain_nm_per_v * float(meas.u_v[at]) - other)
         swing = model.gain_nm_per_v * float(np.ptp(meas.u_v[at:first_moved]))
         if swing > MAX_TRAVEL_SWING * float(model.params["coulomb.torque"]):
