@@ -43,6 +43,7 @@ from tracker.plant.model import AxisModel
 from tracker.plant.simulate import predict_windows
 from tracker.workbench.compare.compare import horizon_samples, score_model
 from tracker.workbench.fit.search import FINE_GRID, HIDDEN_STATE_PARAMS, grid_on_prediction, search_start
+from tracker.workbench.fit.short import ShortFit, StopRule, short_least_squares
 from tracker.workbench.fit.torques import replace_params
 from tracker.workbench.measurements.data import Measurement
 from tracker.workbench.measurements.observed import predict_observed
@@ -503,7 +504,8 @@ def _diff_step(name: str) -> float:
 
 @dataclass(slots=True)
 class _HopelessScreen:
-    """A screen's ``least_squares`` callback: stops a screen that cannot survive.
+    """A screen's stop rule (:func:`~tracker.workbench.fit.short.short_least_squares`): stops a
+    screen that cannot survive.
 
     After each iteration the screen's cost is extrapolated at its last rate of improvement
     over the evaluations it has left; when even that ends more than SCREEN_HOPELESS_MARGIN
@@ -517,27 +519,32 @@ class _HopelessScreen:
     bar: float
     evaluations: int
 
-    def __call__(self, intermediate_result: Any) -> None:
-        cost = float(intermediate_result.cost)
-        left = self.evaluations - int(intermediate_result.nfev)
+    def __call__(self, x: FloatArray, cost: float, nfev: int) -> bool:
+        left = self.evaluations - nfev
         rate = self.last_cost / cost if cost > 0.0 else math.inf
         self.last_cost = cost
         if left <= 0 or not math.isfinite(self.bar) or not rate < 1e6:
-            return
+            return False
         projected = cost / max(rate, 1.0) ** left
-        if projected > SCREEN_HOPELESS_MARGIN * PROBE_KEEP_RATIO * self.bar:
-            raise StopIteration
+        return projected > SCREEN_HOPELESS_MARGIN * PROBE_KEEP_RATIO * self.bar
 
 
 @dataclass(frozen=True, slots=True)
-class _StopAtBound:
-    """A trial's ``least_squares`` callback: stops it on a hidden-state bound (:func:`_at_a_bound`)."""
+class _TrialStop:
+    """A trial's stop rule: on a hidden-state bound once a trial has finished inside the
+    model's domain (``bound_loses``, :func:`_at_a_bound`), or where an earlier trial ended
+    (``ends``, :func:`_same_point`): two trials in one basin are one trial, and the one that
+    runs into the other's end would only repeat it (on a 2 kHz belt log two of three trials
+    spent 130 evaluations walking to the first one's end point)."""
 
     coords: _Coords
+    bound_loses: bool
+    ends: tuple[FloatArray, ...]
 
-    def __call__(self, intermediate_result: Any) -> None:
-        if _at_a_bound(self.coords, np.asarray(intermediate_result.x)):
-            raise StopIteration
+    def __call__(self, x: FloatArray, cost: float, nfev: int) -> bool:
+        if self.bound_loses and _at_a_bound(self.coords, x):
+            return True
+        return any(_same_point(x, end) for end in self.ends)
 
 
 def _same_point(a: FloatArray, b: FloatArray) -> bool:
@@ -690,8 +697,8 @@ def fit_model(
         # Other basins of a multimodal parameter (a belt resonance): the grid judged them with the
         # base parameters not yet refitted. A short fit from each on a quarter of the windows,
         # then the full fit from the best.
-        def short_fit(x: FloatArray, evaluations: int, callback: Callable[[Any], None] | None = None) -> Any:
-            hopeless = callback if isinstance(callback, _HopelessScreen) else None
+        def short_fit(x: FloatArray, evaluations: int, stop: StopRule | None = None) -> ShortFit:
+            hopeless = stop if isinstance(stop, _HopelessScreen) else None
 
             def fun(x_: FloatArray) -> FloatArray:
                 r = probe(x_)
@@ -699,19 +706,10 @@ def fit_model(
                     hopeless.last_cost = 0.5 * float(r @ r)  # the start's (the first evaluation)
                 return r
 
-            return least_squares(
-                fun,
-                x,
-                bounds=(coords.lower, coords.upper),
-                method="trf",
-                x_scale=1.0,
-                diff_step=steps,
-                max_nfev=evaluations,
-                callback=callback,
-            )
+            return short_least_squares(fun, x, coords.lower, coords.upper, steps, evaluations, stop)
 
         x_starts = [coords.encode(cand) for cand in (model0, *start.alternatives)]
-        screened: list[Any] = []
+        screened: list[ShortFit] = []
         for x in x_starts:
             bar = min((t.cost for t in screened), default=math.inf)
             hopeless = _HopelessScreen(math.nan, bar, PROBE_SCREEN_EVALUATIONS)
@@ -720,7 +718,7 @@ def fit_model(
         # Survivors of the screen, best first, one per basin: starts whose screens ended at the
         # same point (two starts in one basin, e.g. the same resonance from two sets of base
         # values) would only repeat each other's trial.
-        kept: list[Any] = []
+        kept: list[ShortFit] = []
         for first in sorted(screened, key=lambda t: t.cost):
             if first.cost <= PROBE_KEEP_RATIO * best_screen and not any(
                 _same_point(first.x, o.x) for o in kept
@@ -739,7 +737,7 @@ def fit_model(
                 # hidden-state bound has lost whatever its cost (:func:`_at_a_bound`): it stops
                 # there (a belt damping run to its bound of 2 needs many sub-steps a sample).
                 inside = any(not t[0] for t in trials)
-                stop = _StopAtBound(coords) if inside else None
+                stop = _TrialStop(coords, inside, tuple(t[2] for t in trials))
                 trial = short_fit(first.x, more, stop) if first.status == 0 else first
                 trials.append((_at_a_bound(coords, trial.x), trial.cost, trial.x))
             x0 = min(trials, key=lambda t: (t[0], t[1]))[2]
@@ -774,14 +772,8 @@ def fit_model(
                 x_full[keep] = x_free
                 return probe(x_full)
 
-            got = least_squares(
-                held,
-                x_r[keep],
-                bounds=(coords.lower[keep], coords.upper[keep]),
-                method="trf",
-                x_scale=1.0,
-                diff_step=steps[keep],
-                max_nfev=RIVAL_EVALUATIONS,
+            got = short_least_squares(
+                held, x_r[keep], coords.lower[keep], coords.upper[keep], steps[keep], RIVAL_EVALUATIONS
             ).x
             x_full = x_r.copy()
             x_full[keep] = got

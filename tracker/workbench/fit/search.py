@@ -359,18 +359,21 @@ def search_start(
     # predicts better than the true resonance. Judged at the catalogue's default width or
     # frequency, the starts cannot be ranked either: search on each start, keep the best.
     per_start = [_search_hidden_state(meas, est, cand, free, k) for cand in starts]
-    ranked = sorted(
-        (m for found in per_start for m in found), key=lambda cand: window_cost(meas, est, cand, k)
-    )
+    # The best of all (on every window); only the best is needed, so the others may stop early.
+    best, best_cost = per_start[0][0], math.inf
+    for m in (m for found in per_start for m in found):
+        cost = window_cost(meas, est, m, k, abandon_above=best_cost)
+        if cost < best_cost:
+            best, best_cost = m, cost
     # Other basins worth a fit of their own: each start's best two (its base values decide which
     # resonance predicts best before they are refitted), in other basins than the best start.
     others: list[AxisModel] = []
     for found in per_start:
         for m in found[:2]:
-            if m is not ranked[0] and all(_other_basin(m, o) for o in (ranked[0], *others)):
+            if m is not best and all(_other_basin(m, o) for o in (best, *others)):
                 others.append(m)
-    rivals = tuple(replace_params(ranked[0], {"delay.seconds": v}) for v in rival_delays)
-    return StartValues(ranked[0], id_error, tuple(others), rivals)
+    rivals = tuple(replace_params(best, {"delay.seconds": v}) for v in rival_delays)
+    return StartValues(best, id_error, tuple(others), rivals)
 
 
 def ripple_alternatives(
@@ -459,6 +462,28 @@ def _local_minima(costs: Sequence[float], n: int) -> list[int]:
     return sorted(idx, key=lambda i: c[i])[:n]
 
 
+def _is_local_minimum(costs: Sequence[float], i: int) -> bool:
+    """Whether ``costs[i]`` is a local minimum of the profile (ends count), as :func:`_local_minima`."""
+    i %= len(costs)
+    return (i == 0 or costs[i] <= costs[i - 1]) and (i == len(costs) - 1 or costs[i] <= costs[i + 1])
+
+
+def _profile_bound(minima: Sequence[float]) -> float:
+    """The cost above which a point of the coarse resonance profile may be abandoned: the
+    :data:`RESONANCE_BASINS`-th lowest local minimum confirmed so far (infinite before).
+
+    Exact: only the lowest few local minima are refined, and a point dearer than that many
+    confirmed minima can neither be one of them nor, with its cost reported as infinite, make
+    a neighbour below the bound a local minimum that it is not (the neighbour is cheaper
+    either way). The bound only falls as the scan goes on, so the minima finally chosen are
+    below the bound every abandoned point was judged against, and they are the ones the
+    unbounded profile gives.
+    """
+    if len(minima) < RESONANCE_BASINS:
+        return math.inf
+    return sorted(minima)[RESONANCE_BASINS - 1]
+
+
 def search_resonance(
     meas: Measurement, est: StateEstimate, model: AxisModel, fit_damping: bool, k: int
 ) -> list[AxisModel]:
@@ -481,17 +506,27 @@ def search_resonance(
         return [model]
     z0 = model.params["compliance.damping"]
     zetas = COARSE_DAMPING_GRID if fit_damping else (z0,)
-    profile: list[tuple[float, AxisModel]] = []
+    profile: list[tuple[float, AxisModel]] = [(math.inf, model)] * len(freqs)
+    # Costs of the profile's confirmed local minima (:func:`_profile_bound`).
+    minima: list[float] = []
     j = 0
-    for f in freqs:
+    # From the stiff end down: a stiff belt predicts like a rigid axis, and it and the belt's
+    # own resonance are usually the lowest minima, so the bound is set before the soft end
+    # (where a log's costs are highest) is scanned.
+    for n in reversed(range(len(freqs))):
+        f = freqs[n]
         cands = [replace_params(model, {"compliance.frequency": f, "compliance.damping": z}) for z in zetas]
         # Only the best damping's cost enters the profile: the others may stop early, and
         # trying first the damping that won at the last frequency sets the bar soonest.
+        bound = _profile_bound(minima)
         costs = [math.inf] * len(cands)
         for i in (j, *(i for i in range(len(cands)) if i != j)):
-            costs[i] = window_cost(meas, est, cands[i], k, GRID_WINDOW_STRIDE, min(costs))
+            costs[i] = window_cost(meas, est, cands[i], k, GRID_WINDOW_STRIDE, min(*costs, bound))
         j = int(np.argmin(costs))
-        profile.append((costs[j], cands[j]))
+        profile[n] = (costs[j], cands[j])
+        # The point above has both neighbours now (the top one: its one neighbour).
+        if n + 1 < len(freqs) and _is_local_minimum([c for c, _ in profile[n : n + 3]], 1):
+            minima.append(profile[n + 1][0])
     found: list[tuple[float, AxisModel]] = []
     for i in _local_minima([c for c, _ in profile], RESONANCE_BASINS):
         # Each step's winner carries its cost (same stride) into the next: no re-evaluation.
