@@ -168,4 +168,5 @@ def test_stiction_under_gravity_is_timed_against_the_moving_data() -> None:
         (c.effect, c.significant, c.finding) for c in second.candidates
     ]
     fitted = second.candidate("stiction").params["stiction.static_torque"]
-    assert abs(fitted - truth["params"]["stiction.static_torque"]) < 0.15 * truth["params"]["stiction.static_torque"]
+    true = truth["params"]["stiction.static_torque"]
+    assert abs(fitted - true) < 0.15 * true
