@@ -80,6 +80,13 @@ def test_single_hidden_effect_is_named_and_its_parameters_recovered(effect: str)
     for name, value in cand.params.items():
         _check_param(name, value, true.params[name])
     assert cand.fit_percent > d.fit_percent  # the error falls with the effect added
+    if effect == "compliance":
+        # The evidence gives the load's swing against a held motor, f·√(motor share), which the
+        # log fixes whatever share the model assumes (docs/workbench.md, limits).
+        m = re.search(r"held motor at ([0-9.]+) Hz", cand.evidence)
+        assert m, cand.evidence
+        f_load = true.params["compliance.frequency"] * math.sqrt(true.params["inertia.motor_fraction"])
+        assert float(m.group(1)) == pytest.approx(f_load, rel=0.1)
 
 
 def test_every_optional_effect_is_ranked_with_evidence_in_words() -> None:
