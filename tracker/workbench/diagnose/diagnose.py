@@ -221,10 +221,16 @@ def diagnose(
         if breakaway is not None and breakaway.static_excess_se > 0
         else None,
     )
-    # A second round judges a torque effect's share of the residual beyond the encoder's own;
-    # not the first round's look again with its computational latency added (``refit_present``
-    # is then False: the user's model had no effects), whose bars stay those of a first round.
-    sensor_sse = sensor_torque_sse(sig, base_reg) if present and refit_present else 0.0
+    # A torque effect's share of the residual is judged beyond the encoder's own (rigid models).
+    # A first round (and its look again with a computational latency added) counts the inertial
+    # torque the regression's noise-shrunken inertia leaves as the encoder's too, against the
+    # inertia the simulation judges by; a user's second round keeps the regression's inertia.
+    if two_mass:
+        sensor_sse = 0.0
+    elif present and refit_present:
+        sensor_sse = sensor_torque_sse(sig, base_reg)
+    else:
+        sensor_sse = sensor_torque_sse(sig, base_reg, float(base_model.params["inertia.J"]))
     rows = [
         judge_candidate(
             scr,

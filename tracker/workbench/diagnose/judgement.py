@@ -226,11 +226,12 @@ def judge_candidate(
 
     ``present``: the model already has effects (a second round), so ``base_model`` is the present
     structure refitted by simulation (:func:`refit_present_structure`), and a torque effect the
-    screening supports is also refitted by simulation together with it (:func:`_refit_jointly`);
-    its screening share is then judged beyond ``sensor_sse``, the encoder's own part of the
-    residual torque (:func:`_screen_gain`). ``second_round``: the user's model had effects (not
-    the first round's look again with a computational latency added): the candidate is also
-    tried with each parameter from the stage that measures it (:func:`_torque_terms_only`).
+    screening supports is also refitted by simulation together with it (:func:`_refit_jointly`).
+    A torque effect's screening share is judged beyond ``sensor_sse``, the encoder's own part of
+    the residual torque (:func:`_screen_gain`; 0 on a two-mass model). ``second_round``: the
+    user's model had effects (not the first round's look again with a computational latency
+    added): the candidate is also tried with each parameter from the stage that measures it
+    (:func:`_torque_terms_only`).
     """
     effect = scr.effect
     cand = _candidate_model(base_model, scr, ctx)
@@ -253,7 +254,7 @@ def judge_candidate(
     # by a margin, so a looser one suffices (another missing effect left in the residual
     # shrinks its effective sample size).
     max_p = MAX_SCREEN_P if effect in TORQUE_EFFECTS else MAX_SCREEN_P_JUDGED
-    share = _screen_gain(scr, ctx, present, sensor_sse)
+    share = _screen_gain(scr, ctx, sensor_sse)
     screen_ok = share >= MIN_SCREEN_GAIN and scr.p_value <= max_p and scr.folds_improve
     if effect == "stiction":
         # Moving data barely sees static friction (the axis leaves the Stribeck zone in a few
@@ -379,21 +380,25 @@ def judge_candidate(
     )
 
 
-def _screen_gain(scr: Screen, ctx: EvidenceContext, present: bool, sensor_sse: float) -> float:
+def _screen_gain(scr: Screen, ctx: EvidenceContext, sensor_sse: float) -> float:
     """The share of the residual torque the screening credits ``scr`` with, for its bar.
 
-    A first round: the share of the held-out residual torque (``gain_cv``). A second round on a
-    rigid model, for a torque effect: the share of what is left beyond the sensor (``sensor_sse``,
-    :func:`tracker.workbench.diagnose.sensor_floor.sensor_torque_sse`). Once the first effect is
-    in the model, the encoder's own torque is most of the residual on a coarse or fast-sampled
-    encoder (55-63 % on the seed-9393 pairs traced), and a second effect as real as the first
-    clears a bar on a share of mostly sensor only when it is large. A torque effect's columns
+    For a torque effect on a rigid model: the share of what is left beyond the sensor
+    (``sensor_sse``, :func:`tracker.workbench.diagnose.sensor_floor.sensor_torque_sse`); else the
+    share of the held-out residual torque (``gain_cv``). Once the first effect is in the model,
+    the encoder's own torque is most of the residual on a coarse or fast-sampled encoder (55-63 %
+    on the seed-9393 pairs traced), and a second effect as real as the first clears a bar on a
+    share of mostly sensor only when it is large. So it is in a first round on a coarse encoder,
+    where the regression's inertia shrinks under the noise of α and leaves the inertial torque in
+    the residual too (9191 held-out coulomb_asymmetry-007, 500 counts per revolution at 250 Hz: a
+    47 % Coulomb asymmetry explained 4 % of the residual torque, 18 % of what the encoder leaves
+    explainable; the k-step error fell 4 % with it, t = 4.2). A torque effect's columns
     (functions of θ and of the direction of motion) cannot follow that high-frequency torque, so
     what they explain comes out of the rest. The hidden-state effects (a dead band, a belt)
     filter α itself and can explain sensor torque: they keep their own bars. The disturbance
     stays in the rest, so the bar is not lowered for it.
     """
-    if not present or sensor_sse <= 0.0 or scr.effect not in TORQUE_EFFECTS:
+    if sensor_sse <= 0.0 or scr.effect not in TORQUE_EFFECTS:
         return scr.gain_cv
     base_sse = ctx.base_reg.sse_cv
     beyond = base_sse - sensor_sse
