@@ -173,14 +173,18 @@ def default_free(model: AxisModel, fit_gain: bool = False) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _log_upper_bounds(rail_v: float) -> dict[str, float]:
+    """Upper bounds a log whose drive's rail is ``rail_v`` (V) sets below the catalogue's: a
+    saturation's limit no higher than the rail (above it the limit clips nothing the log
+    commands)."""
+    return {"saturation.limit": rail_v}
+
+
 def _bounds(name: str, rail_v: float) -> tuple[float, float]:
     """The bounds of parameter ``name`` in a fit to a log whose drive's rail is ``rail_v`` (V):
-    the catalogue's, and a saturation's limit no higher than the rail (above it the limit
-    clips nothing the log commands)."""
+    the catalogue's, lowered by :func:`_log_upper_bounds`."""
     prm = get_param(name)
-    if name == "saturation.limit":
-        return prm.lower, min(prm.upper, rail_v)
-    return prm.lower, prm.upper
+    return prm.lower, min(prm.upper, _log_upper_bounds(rail_v).get(name, math.inf))
 
 
 @dataclass(frozen=True, slots=True)
@@ -836,7 +840,9 @@ def _finish(
         elapsed_s=time.perf_counter() - t0,
         correlated=correlated,
         fit_horizon_s=fit_k * meas.dt_s,
-        upper_bounds={"saturation.limit": drive_rail_v(meas.u_v)} if model.has("saturation") else {},
+        upper_bounds={
+            k: v for k, v in _log_upper_bounds(drive_rail_v(meas.u_v)).items() if k in model.params
+        },
     )
 
 
